@@ -69,6 +69,8 @@ pub struct AttachReply {
     pub autoreset_mode: AutoresetMode,
     /// The server's spin budget in microseconds (clients spin about as long).
     pub server_spin_us: u64,
+    /// The server's iceoryx2 node id (decimal), so a client can tell a dead server.
+    pub server_node_id: String,
 }
 
 /// A registered env.

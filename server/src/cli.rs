@@ -1,0 +1,246 @@
+//! The `echogym` command line: `serve`, `status`, `stop`, `envs`.
+//!
+//! Shared by the Rust binary and the Python console script (which calls
+//! [`main_with_args`] through the native module), so both behave identically.
+
+use std::ffi::OsString;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+
+use clap::{Args, Parser, Subcommand};
+use echogym_protocol::{ControlReply, ControlRequest, IpcLocation};
+
+use crate::client::{ConnectOptions, Connection};
+use crate::config::ServeConfig;
+use crate::envs::EnvRegistry;
+use crate::transport::Shutdown;
+
+/// echogym: simulation server for robot-assisted ultrasound learning.
+#[derive(Debug, Parser)]
+#[command(name = "echogym", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Run a server in the foreground until SIGINT/SIGTERM or `echogym stop`.
+    Serve(ServeArgs),
+    /// Show a running server's leases and counters.
+    Status {
+        #[command(flatten)]
+        target: Target,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Ask a running server to stop gracefully.
+    Stop {
+        #[command(flatten)]
+        target: Target,
+    },
+    /// List the registered env ids.
+    Envs,
+}
+
+/// Which server to talk to.
+#[derive(Debug, Args)]
+struct Target {
+    /// Server name.
+    #[arg(long, default_value = "default", env = "ECHOGYM_SERVER")]
+    name: String,
+    /// iceoryx2 file prefix (default `echogym_`).
+    #[arg(long, env = "ECHOGYM_IPC_PREFIX")]
+    ipc_prefix: Option<String>,
+    /// iceoryx2 root directory (default `/tmp/echogym-<uid>/`).
+    #[arg(long, env = "ECHOGYM_IPC_ROOT")]
+    ipc_root: Option<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+struct ServeArgs {
+    /// TOML config file (CLI flags override it).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Server name; a second server with the same name is refused.
+    #[arg(long)]
+    name: Option<String>,
+    /// Worker threads (0 = one per core).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Microseconds to busy-poll before blocking.
+    #[arg(long)]
+    spin_us: Option<u64>,
+    /// Milliseconds between housekeeping passes.
+    #[arg(long)]
+    housekeeping_ms: Option<u64>,
+    /// Most leases at once.
+    #[arg(long)]
+    max_leases: Option<usize>,
+    /// Most envs at once.
+    #[arg(long)]
+    max_envs: Option<usize>,
+    /// Log filter, e.g. `info` or `echogym=debug`.
+    #[arg(long)]
+    log: Option<String>,
+    /// iceoryx2 file prefix.
+    #[arg(long)]
+    ipc_prefix: Option<String>,
+    /// iceoryx2 root directory.
+    #[arg(long)]
+    ipc_root: Option<PathBuf>,
+    /// Print the resolved configuration as TOML and exit.
+    #[arg(long)]
+    print_config: bool,
+    /// Stop when this pid stops being the parent process (used by auto-started servers).
+    #[arg(long, hide = true)]
+    exit_with_parent: Option<u32>,
+}
+
+impl ServeArgs {
+    fn resolve(&self) -> Result<ServeConfig, crate::config::ConfigError> {
+        let mut config = ServeConfig::load(self.config.as_deref())?;
+        fn set<T: Clone>(slot: &mut T, value: &Option<T>) {
+            if let Some(v) = value {
+                *slot = v.clone();
+            }
+        }
+        set(&mut config.name, &self.name);
+        set(&mut config.threads, &self.threads);
+        set(&mut config.spin_us, &self.spin_us);
+        set(&mut config.housekeeping_ms, &self.housekeeping_ms);
+        set(&mut config.max_leases, &self.max_leases);
+        set(&mut config.max_envs, &self.max_envs);
+        set(&mut config.log, &self.log);
+        set(&mut config.ipc.prefix, &self.ipc_prefix);
+        set(&mut config.ipc.root, &self.ipc_root);
+        config.parent_pid = self.exit_with_parent;
+        config.validate()?;
+        Ok(config)
+    }
+}
+
+/// Run the CLI with `args` (including the program name); the process exit code.
+pub fn main_with_args(args: impl IntoIterator<Item = OsString>) -> ExitCode {
+    let cli = match Cli::try_parse_from(args) {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
+    let result = match cli.command {
+        Command::Serve(args) => serve(&args),
+        Command::Status { target, json } => status(&target, json),
+        Command::Stop { target } => stop(&target),
+        Command::Envs => {
+            for env in EnvRegistry::default().list() {
+                println!("{:<28} {}", env.env_id, env.description);
+            }
+            Ok(())
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(message) => {
+            eprintln!("echogym: {message}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn serve(args: &ServeArgs) -> Result<(), String> {
+    let config = args.resolve().map_err(|e| e.to_string())?;
+    if args.print_config {
+        print!("{}", config.to_toml());
+        return Ok(());
+    }
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(tracing_subscriber::EnvFilter::new(&config.log))
+        .with_writer(std::io::stderr)
+        .try_init();
+    let shutdown = Shutdown::new();
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(signal, shutdown.flag())
+            .map_err(|e| format!("cannot install a handler for signal {signal}: {e}"))?;
+    }
+    crate::daemon::run(&config, shutdown).map_err(|e| e.to_string())
+}
+
+fn connect(target: &Target) -> Result<Connection, String> {
+    let mut location = IpcLocation::from_env();
+    if let Some(prefix) = &target.ipc_prefix {
+        location.prefix = prefix.clone();
+    }
+    if let Some(root) = &target.ipc_root {
+        location.root = root.clone();
+    }
+    let options = ConnectOptions {
+        name: target.name.clone(),
+        location,
+        label: format!("echogym cli pid {}", std::process::id()),
+        ..ConnectOptions::default()
+    };
+    Connection::connect(&options).map_err(|e| e.to_string())
+}
+
+fn status(target: &Target, json: bool) -> Result<(), String> {
+    let connection = connect(target)?;
+    let reply = connection
+        .request(&ControlRequest::Status)
+        .map_err(|e| e.to_string())?;
+    let ControlReply::Status(status) = reply else {
+        return Err(format!("unexpected reply: {reply:?}"));
+    };
+    if json {
+        println!("{}", serde_json::to_string_pretty(&status).expect("status serializes"));
+        return Ok(());
+    }
+    println!(
+        "server {:?}: pid {}, version {} (protocol {}), up {:.1} s, {} threads, {} env steps, {} leases reclaimed",
+        status.name,
+        status.pid,
+        status.version,
+        status.protocol_version,
+        status.uptime_s,
+        status.threads,
+        status.env_steps,
+        status.reclaimed_leases
+    );
+    if status.leases.is_empty() {
+        println!("no leases");
+    }
+    for lease in &status.leases {
+        println!(
+            "  lease {:>20}  {:<24} x{:<5} {:>10} exchanges  {:>8.1} s  {}",
+            lease.lease_id, lease.env_id, lease.num_envs, lease.exchanges, lease.age_s, lease.client_label
+        );
+    }
+    Ok(())
+}
+
+fn stop(target: &Target) -> Result<(), String> {
+    let connection = connect(target)?;
+    match connection.request(&ControlRequest::Stop).map_err(|e| e.to_string())? {
+        ControlReply::Stopping => {
+            // Wait for the server to go away so scripts can rely on it being gone.
+            let deadline = std::time::Instant::now() + Duration::from_secs(10);
+            drop(connection);
+            while std::time::Instant::now() < deadline {
+                if connect(target).is_err() {
+                    println!("server {:?} stopped", target.name);
+                    return Ok(());
+                }
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            Err(format!("server {:?} did not stop within 10 s", target.name))
+        }
+        other => Err(format!("unexpected reply: {other:?}")),
+    }
+}

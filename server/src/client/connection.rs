@@ -1,0 +1,248 @@
+//! [`Connection`]: a client's attachment to one server (control channel and wake-ups).
+
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use echogym_protocol::{
+    ControlHeader, ControlReply, ControlRequest, IpcLocation, PROTOCOL_VERSION, ServiceNames,
+};
+use iceoryx2::port::client::Client;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::prelude::*;
+
+use super::error::{ConnectError, ControlCallError};
+use crate::transport::services::{
+    Access, ControlService, EventService, MAX_CLIENTS, control_service, event_service,
+};
+
+type ControlClient =
+    Client<ipc_threadsafe::Service, [u8], ControlHeader, [u8], ControlHeader>;
+
+/// How to reach a server.
+#[derive(Debug, Clone)]
+pub struct ConnectOptions {
+    /// Server name. Default `"default"`.
+    pub name: String,
+    /// Where the server's iceoryx2 resources live. Default: [`IpcLocation::from_env`].
+    pub location: IpcLocation,
+    /// Busy-poll time before blocking while waiting for observations. Default 200 µs
+    /// (the server's default too).
+    pub spin: Duration,
+    /// How long a control request may take. Default 120 s (building physics envs can
+    /// take a while).
+    pub control_timeout: Duration,
+    /// Shown by `echogym status`. Default `pid <pid>`.
+    pub label: String,
+}
+
+impl Default for ConnectOptions {
+    fn default() -> Self {
+        Self {
+            name: "default".to_owned(),
+            location: IpcLocation::from_env(),
+            spin: Duration::from_micros(200),
+            control_timeout: Duration::from_secs(120),
+            label: format!("pid {}", std::process::id()),
+        }
+    }
+}
+
+pub(crate) struct Inner {
+    pub options: ConnectOptions,
+    pub names: ServiceNames,
+    pub config: Config,
+    control: Mutex<ControlClient>,
+    pub wake: Notifier<ipc_threadsafe::Service>,
+    _control_service: ControlService<ipc_threadsafe::Service>,
+    _wake_service: EventService<ipc_threadsafe::Service>,
+    pub node: Node<ipc_threadsafe::Service>,
+}
+
+/// A connection to a running server. Cheap to clone; every lease keeps it alive.
+#[derive(Clone)]
+pub struct Connection {
+    pub(crate) inner: Arc<Inner>,
+}
+
+impl Connection {
+    /// Attach to the running server named `options.name`.
+    pub fn connect(options: &ConnectOptions) -> Result<Self, ConnectError> {
+        let names =
+            ServiceNames::new(&options.name).map_err(|e| ConnectError::InvalidOptions(e.to_string()))?;
+        let config = options
+            .location
+            .iceoryx_config()
+            .map_err(|e| ConnectError::InvalidOptions(e.to_string()))?;
+        let not_running = || ConnectError::ServerNotRunning {
+            name: options.name.clone(),
+            prefix: options.location.prefix.clone(),
+            root: options.location.root.display().to_string(),
+        };
+        let control_name = ServiceName::new(&names.control())
+            .map_err(|e| ConnectError::InvalidOptions(format!("{e:?}")))?;
+        let exists = ipc_threadsafe::Service::does_exist(
+            &control_name,
+            &config,
+            MessagingPattern::RequestResponse,
+        )
+        .map_err(|e| ConnectError::Ipc(format!("{e:?}")))?;
+        if !exists {
+            return Err(not_running());
+        }
+        let node = NodeBuilder::new()
+            .config(&config)
+            .name(
+                &NodeName::new(&format!("echogym-client-{}", std::process::id()))
+                    .map_err(|e| ConnectError::InvalidOptions(format!("{e:?}")))?,
+            )
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<ipc_threadsafe::Service>()
+            .map_err(|e| ConnectError::Ipc(format!("{e:?}")))?;
+        if !server_alive(&config, &options.name) {
+            return Err(not_running());
+        }
+        let control_service =
+            control_service(&node, &names.control(), Access::Open).map_err(|_| not_running())?;
+        let control = control_service
+            .client_builder()
+            .initial_max_slice_len(4096)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .create()
+            .map_err(|e| ConnectError::Ipc(format!("{e:?}")))?;
+        let wake_service = event_service(&node, &names.wake(), MAX_CLIENTS, Access::Open)
+            .map_err(|_| not_running())?;
+        let wake = wake_service
+            .notifier_builder()
+            .create()
+            .map_err(|e| ConnectError::Ipc(format!("{e:?}")))?;
+        Ok(Self {
+            inner: Arc::new(Inner {
+                options: options.clone(),
+                names,
+                config,
+                control: Mutex::new(control),
+                wake,
+                _control_service: control_service,
+                _wake_service: wake_service,
+                node,
+            }),
+        })
+    }
+
+    /// The options this connection was made with.
+    pub fn options(&self) -> &ConnectOptions {
+        &self.inner.options
+    }
+
+    /// This client's iceoryx2 node id (the server reclaims leases when it dies).
+    pub fn node_id(&self) -> u128 {
+        self.inner.node.id().value()
+    }
+
+    /// Send a control request and wait for its reply. Refusals come back as
+    /// [`ControlCallError::Refused`].
+    pub fn request(&self, request: &ControlRequest) -> Result<ControlReply, ControlCallError> {
+        let reply = self.inner.request(request, self.inner.options.control_timeout)?;
+        match reply {
+            ControlReply::Error(e) => Err(ControlCallError::Refused {
+                kind: e.kind,
+                message: e.message,
+            }),
+            reply => Ok(reply),
+        }
+    }
+}
+
+impl Inner {
+    pub(crate) fn request(
+        &self,
+        request: &ControlRequest,
+        timeout: Duration,
+    ) -> Result<ControlReply, ControlCallError> {
+        let text = serde_json::to_vec(request).expect("requests serialize");
+        let control = self.control.lock().unwrap_or_else(|p| p.into_inner());
+        let mut loan = control
+            .loan_slice_uninit(text.len())
+            .map_err(|e| ControlCallError::Ipc(format!("{e:?}")))?;
+        *loan.user_header_mut() = ControlHeader {
+            protocol_version: PROTOCOL_VERSION,
+            payload_len: text.len() as u32,
+        };
+        let pending = loan
+            .write_from_slice(&text)
+            .send()
+            .map_err(|e| ControlCallError::Ipc(format!("{e:?}")))?;
+        let _ = self.wake.notify();
+
+        let started = Instant::now();
+        let mut pause = Duration::from_micros(10);
+        let mut next_check = started + super::wait::LIVENESS_TICK;
+        loop {
+            match pending.receive() {
+                Ok(Some(response)) => {
+                    let header = *response.user_header();
+                    let len = (header.payload_len as usize).min(response.payload().len());
+                    return serde_json::from_slice(&response.payload()[..len])
+                        .map_err(|e| ControlCallError::Malformed(e.to_string()));
+                }
+                Ok(None) => {}
+                Err(e) => return Err(ControlCallError::Ipc(format!("{e:?}"))),
+            }
+            let now = Instant::now();
+            if now.duration_since(started) > timeout {
+                return Err(ControlCallError::Timeout(timeout));
+            }
+            if now >= next_check {
+                if !server_alive(&self.config, self.names.server()) {
+                    return Err(ControlCallError::ServerStopped);
+                }
+                next_check = now + super::wait::LIVENESS_TICK;
+            }
+            std::thread::sleep(pause);
+            pause = (pause * 2).min(Duration::from_millis(1));
+        }
+    }
+}
+
+/// Whether a live node of the server called `name` exists.
+pub(crate) fn server_alive(config: &Config, name: &str) -> bool {
+    use iceoryx2::node::NodeView;
+    let prefix = format!("echogym-serve-{name}-");
+    let mut alive = false;
+    let _ = Node::<ipc_threadsafe::Service>::list(config, |state| {
+        if let NodeState::Alive(view) = &state
+            && view
+                .details()
+                .as_ref()
+                .is_some_and(|d| is_server_node(&d.name().to_string(), &prefix))
+        {
+            alive = true;
+            return CallbackProgression::Stop;
+        }
+        CallbackProgression::Continue
+    });
+    alive
+}
+
+/// `echogym-serve-<name>-<pid>` exactly (so `a` does not match server `a-b`).
+fn is_server_node(node_name: &str, prefix: &str) -> bool {
+    node_name
+        .strip_prefix(prefix)
+        .is_some_and(|pid| pid.parse::<u32>().is_ok())
+}
+
+/// Whether the node with id `node_id` is alive.
+pub(crate) fn node_alive(config: &Config, node_id: u128) -> bool {
+    use iceoryx2::node::NodeView;
+    let mut alive = false;
+    let _ = Node::<ipc_threadsafe::Service>::list(config, |state| {
+        if let NodeState::Alive(view) = &state
+            && view.id().value() == node_id
+        {
+            alive = true;
+            return CallbackProgression::Stop;
+        }
+        CallbackProgression::Continue
+    });
+    alive
+}

@@ -1,0 +1,179 @@
+//! `echogym serve` configuration: defaults, then a TOML file, then CLI flags.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use echogym_protocol::IpcLocation;
+use serde::{Deserialize, Serialize};
+
+use crate::transport::DispatcherOptions;
+
+/// The server's configuration. Every field has a default; a TOML file may set any of
+/// them (unknown keys are errors), and CLI flags override the file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ServeConfig {
+    /// Server name; clients connect by name. Default `"default"`.
+    pub name: String,
+    /// Worker threads stepping env batches; 0 means one per core. Default 0.
+    pub threads: usize,
+    /// Microseconds to busy-poll for work before blocking on an event. Default 200:
+    /// long enough to catch a client's next step without a ≈ 50 µs wake-up, short
+    /// enough that an idle server costs nothing.
+    pub spin_us: u64,
+    /// Milliseconds between housekeeping passes (dead-client reclaim, shutdown checks).
+    /// Default 100, which bounds the reclaim delay well under 2 s.
+    pub housekeeping_ms: u64,
+    /// Most leases held at once. Default 256.
+    pub max_leases: usize,
+    /// Most envs held at once, over all leases. Default 65,536.
+    pub max_envs: usize,
+    /// Log filter (`tracing` env-filter syntax). Default `"info"`.
+    pub log: String,
+    /// Where iceoryx2 resources live. Default prefix `echogym_`, root
+    /// `/tmp/echogym-<uid>/`; `ECHOGYM_IPC_PREFIX` / `ECHOGYM_IPC_ROOT` override both.
+    pub ipc: IpcLocation,
+    /// Stop when this pid is no longer the parent (set for private auto-started servers).
+    #[serde(skip)]
+    pub parent_pid: Option<u32>,
+}
+
+impl Default for ServeConfig {
+    fn default() -> Self {
+        Self {
+            name: "default".to_owned(),
+            threads: 0,
+            spin_us: 200,
+            housekeeping_ms: 100,
+            max_leases: 256,
+            max_envs: 65_536,
+            log: "info".to_owned(),
+            ipc: IpcLocation::from_env(),
+            parent_pid: None,
+        }
+    }
+}
+
+/// A configuration could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// The file could not be read.
+    #[error("cannot read config file {path}: {source}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The file is not valid TOML or has unknown keys.
+    #[error("invalid config file {path}: {message}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// What the parser said (names the key).
+        message: String,
+    },
+    /// A value is out of range.
+    #[error("invalid config: `{key}` {message}")]
+    Invalid {
+        /// The key.
+        key: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+impl ServeConfig {
+    /// Defaults, overridden by the TOML file at `path` if given.
+    pub fn load(path: Option<&Path>) -> Result<Self, ConfigError> {
+        let Some(path) = path else {
+            return Ok(Self::default());
+        };
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.to_owned(),
+            source,
+        })?;
+        toml::from_str(&text).map_err(|e| ConfigError::Parse {
+            path: path.to_owned(),
+            message: e.to_string(),
+        })
+    }
+
+    /// Check values that types alone do not bound.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let invalid = |key, message: &str| ConfigError::Invalid {
+            key,
+            message: message.to_owned(),
+        };
+        if self.housekeeping_ms == 0 || self.housekeeping_ms > 1000 {
+            return Err(invalid("housekeeping_ms", "must be between 1 and 1000"));
+        }
+        if self.spin_us > 1_000_000 {
+            return Err(invalid("spin_us", "must be at most 1,000,000"));
+        }
+        if self.max_leases == 0 || self.max_envs == 0 {
+            return Err(invalid("max_leases", "and max_envs must be positive"));
+        }
+        if self.threads > 1024 {
+            return Err(invalid("threads", "must be at most 1024"));
+        }
+        echogym_protocol::ServiceNames::new(&self.name).map_err(|e| ConfigError::Invalid {
+            key: "name",
+            message: e.to_string(),
+        })?;
+        self.ipc.iceoryx_config().map_err(|e| ConfigError::Invalid {
+            key: "ipc",
+            message: e.to_string(),
+        })?;
+        Ok(())
+    }
+
+    /// The resolved configuration as TOML (for `--print-config`).
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).expect("config serializes")
+    }
+
+    /// Options for the dispatcher.
+    pub fn dispatcher_options(&self) -> DispatcherOptions {
+        DispatcherOptions {
+            name: self.name.clone(),
+            location: self.ipc.clone(),
+            threads: self.threads,
+            spin: Duration::from_micros(self.spin_us),
+            housekeeping: Duration::from_millis(self.housekeeping_ms),
+            max_leases: self.max_leases,
+            max_envs: self.max_envs,
+            parent_pid: self.parent_pid,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn file_overrides_defaults_and_unknown_keys_fail() {
+        let dir = std::env::temp_dir().join(format!("echogym-config-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let good = dir.join("good.toml");
+        std::fs::write(&good, "name = \"lab\"\nspin_us = 5\n[ipc]\nprefix = \"p_\"\nroot = \"/tmp/r/\"\n").unwrap();
+        let config = ServeConfig::load(Some(&good)).unwrap();
+        assert_eq!(config.name, "lab");
+        assert_eq!(config.spin_us, 5);
+        assert_eq!(config.max_leases, 256);
+        assert_eq!(config.ipc.prefix, "p_");
+        let bad = dir.join("bad.toml");
+        std::fs::write(&bad, "spin_uss = 5\n").unwrap();
+        let err = ServeConfig::load(Some(&bad)).unwrap_err().to_string();
+        assert!(err.contains("spin_uss"), "{err}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn printed_config_parses_back() {
+        let config = ServeConfig::default();
+        let back: ServeConfig = toml::from_str(&config.to_toml()).unwrap();
+        assert_eq!(back, config);
+    }
+}

@@ -1,0 +1,18 @@
+//! The daemon entry point: run a server until its shutdown token fires.
+
+use crate::config::ServeConfig;
+use crate::envs::EnvRegistry;
+use crate::transport::{Dispatcher, Shutdown, StartError};
+
+/// Start a server from `config` with every built-in env and serve until `shutdown`
+/// is requested (signal, `echogym stop`, or the embedding code). Returns once every
+/// lease was told the server stopped and every shared-memory resource was removed.
+pub fn run(config: &ServeConfig, shutdown: Shutdown) -> Result<(), StartError> {
+    let dispatcher = Dispatcher::start(
+        config.dispatcher_options(),
+        EnvRegistry::default(),
+        shutdown,
+    )?;
+    dispatcher.run();
+    Ok(())
+}

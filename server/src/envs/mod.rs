@@ -1,0 +1,14 @@
+//! Environments: what a step does, what it observes, how it is configured.
+//!
+//! An env writes its observation straight into the shared-memory record it is handed
+//! ([`EnvOutput`]); the pool and transport never copy observations.
+
+mod config;
+mod env;
+mod null;
+mod registry;
+
+pub use config::{EnvConfigError, parse_config};
+pub use env::{Env, EnvOutput, Transition};
+pub use null::{NULL_ENV_ID, NullConfig, NullEnvFactory};
+pub use registry::{EnvFactory, EnvRegistry, UnknownEnv};

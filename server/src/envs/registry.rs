@@ -1,0 +1,89 @@
+//! The env registry: versioned ids mapped to factories.
+//!
+//! Later envs join by registering a factory; the transport never changes.
+
+use std::collections::BTreeMap;
+
+use echogym_protocol::{EnvInfo, EnvSpec};
+
+use super::config::EnvConfigError;
+use super::env::Env;
+use super::null::NullEnvFactory;
+
+/// Builds envs of one id.
+pub trait EnvFactory: Send + Sync {
+    /// Versioned id, e.g. `echogym/Null-v0`.
+    fn id(&self) -> &'static str;
+
+    /// One-line description.
+    fn description(&self) -> &'static str;
+
+    /// Validate `config` and resolve the spec (defaults filled into `spec.config`).
+    fn spec(
+        &self,
+        config: &serde_json::Map<String, serde_json::Value>,
+    ) -> Result<EnvSpec, EnvConfigError>;
+
+    /// Build one env from a spec this factory resolved.
+    fn make(&self, spec: &EnvSpec) -> Box<dyn Env>;
+}
+
+/// No env is registered under an id.
+#[derive(Debug, thiserror::Error, Clone, PartialEq, Eq)]
+#[error("unknown env id {id:?}; registered: {known}")]
+pub struct UnknownEnv {
+    /// The id asked for.
+    pub id: String,
+    /// The registered ids, comma-separated.
+    pub known: String,
+}
+
+/// All registered envs.
+pub struct EnvRegistry {
+    factories: BTreeMap<&'static str, Box<dyn EnvFactory>>,
+}
+
+impl Default for EnvRegistry {
+    /// The registry with every built-in env.
+    fn default() -> Self {
+        let mut registry = Self::empty();
+        registry.register(Box::new(NullEnvFactory));
+        registry
+    }
+}
+
+impl EnvRegistry {
+    /// A registry with no envs.
+    pub fn empty() -> Self {
+        Self {
+            factories: BTreeMap::new(),
+        }
+    }
+
+    /// Add a factory (replacing one with the same id).
+    pub fn register(&mut self, factory: Box<dyn EnvFactory>) {
+        self.factories.insert(factory.id(), factory);
+    }
+
+    /// The factory for `id`.
+    pub fn get(&self, id: &str) -> Result<&dyn EnvFactory, UnknownEnv> {
+        self.factories
+            .get(id)
+            .map(|f| f.as_ref())
+            .ok_or_else(|| UnknownEnv {
+                id: id.to_owned(),
+                known: self.factories.keys().copied().collect::<Vec<_>>().join(", "),
+            })
+    }
+
+    /// Every registered env.
+    pub fn list(&self) -> Vec<EnvInfo> {
+        self.factories
+            .values()
+            .map(|f| EnvInfo {
+                env_id: f.id().to_owned(),
+                description: f.description().to_owned(),
+            })
+            .collect()
+    }
+}

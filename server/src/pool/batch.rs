@@ -1,0 +1,353 @@
+//! [`EnvBatch`]: the envs of one lease and one exchange over them.
+//!
+//! An exchange reads actions from the action sample and writes observations, rewards,
+//! flags and info straight into the observation sample. It runs as named stages:
+//! validate (nothing is touched if any input is bad) → clip actions → split the
+//! observation sample into per-env jobs → step/reset in parallel → report.
+
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::time::Instant;
+
+use echogym_protocol::{
+    AutoresetMode, BatchLayout, EnvSpec, LayoutError, ObsField, Op, ResetFlag, StepStatus,
+};
+
+use super::workers::WorkerPool;
+use crate::envs::{Env, EnvFactory, EnvOutput, Transition};
+
+/// Why an exchange was refused or failed. Nothing was stepped unless `status` is
+/// `EnvFailure`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("{status:?} (env {env_index:?}, element {element_index:?})")]
+pub struct ExchangeError {
+    /// The status reported to the client.
+    pub status: StepStatus,
+    /// The env concerned, if one.
+    pub env_index: Option<usize>,
+    /// The action element concerned, if one.
+    pub element_index: Option<usize>,
+}
+
+impl ExchangeError {
+    fn new(status: StepStatus) -> Self {
+        Self {
+            status,
+            env_index: None,
+            element_index: None,
+        }
+    }
+
+    fn at(status: StepStatus, env: usize) -> Self {
+        Self {
+            status,
+            env_index: Some(env),
+            element_index: None,
+        }
+    }
+}
+
+/// One env plus its episode bookkeeping.
+struct Slot {
+    env: Box<dyn Env>,
+    episode_steps: u64,
+    needs_reset: bool,
+}
+
+/// One env's share of an exchange: its inputs and its disjoint pieces of the output.
+struct Job<'a> {
+    action: &'a [f32],
+    reset: ResetFlag,
+    seed: u64,
+    record: &'a mut [u8],
+    info: &'a mut [f32],
+    reward: &'a mut f32,
+    terminated: &'a mut u8,
+    truncated: &'a mut u8,
+    final_record: Option<&'a mut [u8]>,
+    final_info: Option<&'a mut [f32]>,
+    panicked: bool,
+}
+
+/// The envs of one lease.
+pub struct EnvBatch {
+    spec: EnvSpec,
+    layout: BatchLayout,
+    mode: AutoresetMode,
+    slots: Vec<Slot>,
+    clipped: Vec<f32>,
+    step_cost_ns: f64,
+}
+
+impl EnvBatch {
+    /// Build `num_envs` envs of `spec` (resolved by `factory`).
+    pub fn new(
+        factory: &dyn EnvFactory,
+        spec: EnvSpec,
+        num_envs: usize,
+        mode: AutoresetMode,
+    ) -> Result<Self, LayoutError> {
+        let layout = BatchLayout::new(&spec, num_envs, mode)?;
+        let slots = (0..num_envs)
+            .map(|_| Slot {
+                env: factory.make(&spec),
+                episode_steps: 0,
+                needs_reset: true,
+            })
+            .collect();
+        Ok(Self {
+            clipped: vec![0.0; num_envs * spec.action.size],
+            spec,
+            layout,
+            mode,
+            slots,
+            step_cost_ns: 0.0,
+        })
+    }
+
+    /// The batch layout.
+    pub fn layout(&self) -> &BatchLayout {
+        &self.layout
+    }
+
+    /// The env spec.
+    pub fn spec(&self) -> &EnvSpec {
+        &self.spec
+    }
+
+    /// Number of envs.
+    pub fn len(&self) -> usize {
+        self.slots.len()
+    }
+
+    /// True for a batch of no envs (never built).
+    pub fn is_empty(&self) -> bool {
+        self.slots.is_empty()
+    }
+
+    /// Run one exchange: read `action` (the action sample payload), write `obs` (the
+    /// observation sample payload, zero-filled). Returns the number of env steps taken.
+    pub fn exchange(
+        &mut self,
+        pool: &WorkerPool,
+        op: Op,
+        action: &[u8],
+        obs: &mut [u8],
+    ) -> Result<u64, ExchangeError> {
+        let (actions, flags, seeds) = self.validate(op, action, obs.len())?;
+        self.clip(actions);
+        let mut jobs = split_jobs(&self.layout, &self.clipped, flags, seeds, obs)?;
+        let steps = jobs
+            .iter()
+            .filter(|j| op == Op::Step && j.reset == ResetFlag::Keep)
+            .count() as u64;
+
+        let started = Instant::now();
+        let fields = self.spec.observation.as_slice();
+        let (mode, max_steps) = (self.mode, self.spec.max_episode_steps);
+        let cost = self.step_cost_ns;
+        pool.for_each(&mut self.slots, &mut jobs, cost, |slot, job| {
+            let outcome = catch_unwind(AssertUnwindSafe(|| {
+                run_job(slot, job, fields, op, mode, max_steps);
+            }));
+            if outcome.is_err() {
+                job.panicked = true;
+                slot.needs_reset = true;
+            }
+        });
+        let panicked = jobs.iter().position(|j| j.panicked);
+        drop(jobs);
+        if steps > 0 {
+            let per_env = started.elapsed().as_nanos() as f64 / self.slots.len() as f64;
+            self.step_cost_ns = if self.step_cost_ns == 0.0 {
+                per_env
+            } else {
+                0.9 * self.step_cost_ns + 0.1 * per_env
+            };
+        }
+        match panicked {
+            Some(env) => Err(ExchangeError::at(StepStatus::EnvFailure, env)),
+            None => Ok(steps),
+        }
+    }
+
+    /// Check every input before anything changes; return the typed action-sample blocks.
+    fn validate<'a>(
+        &self,
+        op: Op,
+        action: &'a [u8],
+        obs_len: usize,
+    ) -> Result<(&'a [f32], &'a [u8], &'a [u64]), ExchangeError> {
+        let layout = &self.layout;
+        let (k, a) = (layout.num_envs, layout.action_size);
+        if action.len() < layout.action.total || obs_len < layout.obs.total {
+            return Err(ExchangeError::new(StepStatus::ShapeMismatch));
+        }
+        let misaligned = || ExchangeError::new(StepStatus::ShapeMismatch);
+        let actions: &[f32] = bytemuck::try_cast_slice(
+            &action[layout.action.actions..layout.action.actions + k * a * 4],
+        )
+        .map_err(|_| misaligned())?;
+        let flags = &action[layout.action.reset..layout.action.reset + k];
+        let seeds: &[u64] =
+            bytemuck::try_cast_slice(&action[layout.action.seeds..layout.action.seeds + k * 8])
+                .map_err(|_| misaligned())?;
+
+        for (env, (&flag, slot)) in flags.iter().zip(&self.slots).enumerate() {
+            let flag = ResetFlag::from_u8(flag)
+                .ok_or(ExchangeError::at(StepStatus::BadResetFlag, env))?;
+            if op != Op::Step || flag != ResetFlag::Keep {
+                continue;
+            }
+            if slot.needs_reset {
+                return Err(ExchangeError::at(StepStatus::NeedsReset, env));
+            }
+            let row = &actions[env * a..(env + 1) * a];
+            if let Some(element) = row.iter().position(|x| !x.is_finite()) {
+                return Err(ExchangeError {
+                    status: StepStatus::NonFiniteAction,
+                    env_index: Some(env),
+                    element_index: Some(element),
+                });
+            }
+        }
+        Ok((actions, flags, seeds))
+    }
+
+    /// Clip actions to the spec's bounds into the batch's scratch buffer.
+    fn clip(&mut self, actions: &[f32]) {
+        let (low, high) = (&self.spec.action.low, &self.spec.action.high);
+        for (row_out, row_in) in self
+            .clipped
+            .chunks_mut(low.len())
+            .zip(actions.chunks(low.len()))
+        {
+            for (i, (out, &x)) in row_out.iter_mut().zip(row_in).enumerate() {
+                *out = x.clamp(low[i], high[i]);
+            }
+        }
+    }
+
+}
+
+/// Split the observation sample into one job per env.
+fn split_jobs<'a>(
+        l: &BatchLayout,
+        clipped: &'a [f32],
+        flags: &[u8],
+        seeds: &[u64],
+        obs: &'a mut [u8],
+    ) -> Result<Vec<Job<'a>>, ExchangeError> {
+        let (k, r, i) = (l.num_envs, l.obs_record_bytes, l.info_len);
+        let shape = || ExchangeError::new(StepStatus::ShapeMismatch);
+        let cut = |buf: &'a mut [u8], at: usize| buf.split_at_mut(at);
+
+        let (_, rest) = cut(obs, l.obs.obs);
+        let (records, rest) = cut(rest, l.obs.reward - l.obs.obs);
+        let (reward, rest) = cut(rest, l.obs.terminated - l.obs.reward);
+        let (terminated, rest) = cut(rest, l.obs.truncated - l.obs.terminated);
+        let (truncated, rest) = cut(rest, l.obs.info - l.obs.truncated);
+        let info_end = l.obs.final_obs.unwrap_or(l.obs.total);
+        let (info, rest) = cut(rest, info_end - l.obs.info);
+        let (final_records, final_info) = match (l.obs.final_obs, l.obs.final_info) {
+            (Some(fo), Some(fi)) => {
+                let (records, rest) = cut(rest, fi - fo);
+                let (info, _) = cut(rest, l.obs.total - fi);
+                (Some(records), Some(info))
+            }
+            _ => (None, None),
+        };
+
+        let reward: &mut [f32] = bytemuck::try_cast_slice_mut(&mut reward[..k * 4]).map_err(|_| shape())?;
+        let info: &mut [f32] = bytemuck::try_cast_slice_mut(&mut info[..k * i * 4]).map_err(|_| shape())?;
+        let mut final_records = final_records.map(|b| b[..k * r].chunks_mut(r.max(1)));
+        let mut final_info = match final_info {
+            Some(b) => Some(
+                bytemuck::try_cast_slice_mut::<u8, f32>(&mut b[..k * i * 4])
+                    .map_err(|_| shape())?
+                    .chunks_mut(i.max(1)),
+            ),
+            None => None,
+        };
+
+        let a = l.action_size;
+        let mut records = records[..k * r].chunks_mut(r.max(1));
+        let mut info_rows = info.chunks_mut(i.max(1));
+        let mut jobs = Vec::with_capacity(k);
+        for (env, ((reward, terminated), truncated)) in reward
+            .iter_mut()
+            .zip(terminated[..k].iter_mut())
+            .zip(truncated[..k].iter_mut())
+            .enumerate()
+        {
+            jobs.push(Job {
+                action: &clipped[env * a..(env + 1) * a],
+                reset: ResetFlag::from_u8(flags[env]).expect("validated"),
+                seed: seeds[env],
+                record: records.next().unwrap_or_default(),
+                info: if i == 0 {
+                    &mut []
+                } else {
+                    info_rows.next().unwrap_or_default()
+                },
+                reward,
+                terminated,
+                truncated,
+                final_record: final_records.as_mut().and_then(|c| c.next()),
+                final_info: if i == 0 {
+                    None
+                } else {
+                    final_info.as_mut().and_then(|c| c.next())
+                },
+                panicked: false,
+            });
+        }
+        Ok(jobs)
+}
+
+/// One env's work for one exchange.
+fn run_job(
+    slot: &mut Slot,
+    job: &mut Job<'_>,
+    fields: &[ObsField],
+    op: Op,
+    mode: AutoresetMode,
+    max_steps: Option<u64>,
+) {
+    job.info.fill(0.0);
+    let mut out = EnvOutput::new(fields, job.record, job.info);
+    match (job.reset, op) {
+        (ResetFlag::Keep, Op::Reset) => slot.env.observe(&mut out),
+        (ResetFlag::Keep, Op::Step) => {
+            let Transition { reward, terminated } = slot.env.step(job.action, &mut out);
+            slot.episode_steps += 1;
+            let truncated = max_steps.is_some_and(|m| slot.episode_steps >= m);
+            *job.reward = reward;
+            *job.terminated = u8::from(terminated);
+            *job.truncated = u8::from(truncated);
+            if terminated || truncated {
+                match mode {
+                    AutoresetMode::Disabled => slot.needs_reset = true,
+                    AutoresetMode::SameStep => {
+                        drop(out);
+                        if let Some(final_record) = job.final_record.as_deref_mut() {
+                            final_record.copy_from_slice(job.record);
+                        }
+                        if let Some(final_info) = job.final_info.as_deref_mut() {
+                            final_info.copy_from_slice(job.info);
+                        }
+                        job.info.fill(0.0);
+                        let mut out = EnvOutput::new(fields, job.record, job.info);
+                        slot.env.reset(None, &mut out);
+                        slot.episode_steps = 0;
+                    }
+                }
+            }
+        }
+        (flag, _) => {
+            let seed = (flag == ResetFlag::ResetWithSeed).then_some(job.seed);
+            slot.env.reset(seed, &mut out);
+            slot.episode_steps = 0;
+            slot.needs_reset = false;
+        }
+    }
+}

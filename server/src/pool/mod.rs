@@ -1,0 +1,7 @@
+//! Env instances of one lease, stepped as a batch on a shared worker pool.
+
+mod batch;
+mod workers;
+
+pub use batch::{EnvBatch, ExchangeError};
+pub use workers::{PoolStartError, WorkerPool};

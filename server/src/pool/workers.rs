@@ -1,0 +1,78 @@
+//! The worker pool that steps the envs of a batch in parallel.
+//!
+//! Parallelism is not free (waking workers costs microseconds), so a batch is split
+//! only when its envs are expensive enough: the pool keeps no state, the batch passes
+//! its measured per-env cost and the pool picks the chunk size.
+
+use rayon::prelude::*;
+
+/// Below this estimated batch cost, stepping on the calling thread beats waking workers.
+const PARALLEL_THRESHOLD_NS: f64 = 20_000.0;
+
+/// Worker threads shared by every lease.
+pub struct WorkerPool {
+    pool: rayon::ThreadPool,
+    threads: usize,
+}
+
+/// The pool's threads could not be started.
+#[derive(Debug, thiserror::Error)]
+#[error("cannot start {threads} worker threads: {source}")]
+pub struct PoolStartError {
+    threads: usize,
+    #[source]
+    source: rayon::ThreadPoolBuildError,
+}
+
+impl WorkerPool {
+    /// Start `threads` workers (0 = one per core).
+    pub fn new(threads: usize) -> Result<Self, PoolStartError> {
+        let threads = if threads == 0 {
+            std::thread::available_parallelism().map_or(1, |n| n.get())
+        } else {
+            threads
+        };
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .thread_name(|i| format!("echogym-worker-{i}"))
+            .build()
+            .map_err(|source| PoolStartError { threads, source })?;
+        Ok(Self { pool, threads })
+    }
+
+    /// Number of worker threads.
+    pub fn threads(&self) -> usize {
+        self.threads
+    }
+
+    /// Run `op` inside the pool (so nested parallel iterators use its threads).
+    pub fn install<R: Send>(&self, op: impl FnOnce() -> R + Send) -> R {
+        self.pool.install(op)
+    }
+
+    /// Run `work` on every `(item, job)` pair, in parallel when `cost_per_item_ns` makes
+    /// it worthwhile.
+    pub fn for_each<A: Send, B: Send>(
+        &self,
+        items: &mut [A],
+        jobs: &mut [B],
+        cost_per_item_ns: f64,
+        work: impl Fn(&mut A, &mut B) + Sync + Send,
+    ) {
+        let n = items.len();
+        if self.threads <= 1 || n <= 1 || cost_per_item_ns * n as f64 <= PARALLEL_THRESHOLD_NS {
+            items.iter_mut().zip(jobs.iter_mut()).for_each(|(a, b)| work(a, b));
+            return;
+        }
+        // Chunks of at least ~threshold/2 of work each, and at most one per thread.
+        let per_chunk = ((PARALLEL_THRESHOLD_NS / 2.0) / cost_per_item_ns.max(1.0)).ceil() as usize;
+        let min_len = per_chunk.max(n.div_ceil(self.threads)).max(1);
+        self.pool.install(|| {
+            items
+                .par_iter_mut()
+                .zip(jobs.par_iter_mut())
+                .with_min_len(min_len)
+                .for_each(|(a, b)| work(a, b));
+        });
+    }
+}

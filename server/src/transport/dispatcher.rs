@@ -1,0 +1,446 @@
+//! The dispatcher: the server's one thread that owns every port.
+//!
+//! # Wake-up protocol (spin, then block)
+//! iceoryx2 events coalesce: after a listener drains, the first `notify` sends one
+//! datagram and later ones only bump a shared counter (≈ 40 ns). So both sides always
+//! notify after publishing, and the waiting side
+//! 1. polls its subscribers for the spin budget (≈ 0.1 µs a poll),
+//! 2. then drains its listener, polls once more (anything published before the drain is
+//!    seen now; anything published after it sends a datagram), and
+//! 3. blocks on the listener until woken or until the next housekeeping tick.
+//!
+//! Housekeeping (every `housekeeping` interval, default 100 ms) reclaims leases of dead
+//! clients, reacts to shutdown requests and to the death of a parent process.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use echogym_protocol::{
+    ActionHeader, IpcLocation, ObsHeader, Op, PROTOCOL_VERSION, ServiceNames, StepStatus,
+};
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::server::Server;
+use iceoryx2::prelude::*;
+use iceoryx2::sample::Sample;
+use iceoryx2::sample_mut::SampleMut;
+use rayon::prelude::*;
+
+use super::error::StartError;
+use super::lease::Lease;
+use super::services::{
+    Access, ControlService, EventService, MAX_CLIENTS, ServiceError, control_service,
+    event_service,
+};
+use crate::envs::EnvRegistry;
+use crate::pool::WorkerPool;
+
+/// A shutdown request shared between signal handlers, the `stop` control message and
+/// whoever embeds the server (tests).
+#[derive(Debug, Clone, Default)]
+pub struct Shutdown(Arc<AtomicBool>);
+
+impl Shutdown {
+    /// A token nobody has triggered yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Ask the server to stop after the exchange in flight.
+    pub fn request(&self) {
+        self.0.store(true, Ordering::SeqCst);
+    }
+
+    /// Whether a stop was requested.
+    pub fn is_requested(&self) -> bool {
+        self.0.load(Ordering::SeqCst)
+    }
+
+    /// The flag itself (for `signal_hook::flag::register`).
+    pub fn flag(&self) -> Arc<AtomicBool> {
+        self.0.clone()
+    }
+}
+
+/// What the dispatcher needs to know; see `crate::config::ServeConfig` for meanings
+/// and defaults.
+#[derive(Debug, Clone)]
+pub struct DispatcherOptions {
+    /// Server name.
+    pub name: String,
+    /// Where iceoryx2 resources live.
+    pub location: IpcLocation,
+    /// Worker threads (0 = one per core).
+    pub threads: usize,
+    /// Busy-poll time before blocking.
+    pub spin: Duration,
+    /// Housekeeping period.
+    pub housekeeping: Duration,
+    /// Most leases at once.
+    pub max_leases: usize,
+    /// Most envs at once, over all leases.
+    pub max_envs: usize,
+    /// Stop when this process is no longer our parent (private servers).
+    pub parent_pid: Option<u32>,
+}
+
+/// The running server: every port, lease and counter.
+pub struct Dispatcher {
+    pub(super) options: DispatcherOptions,
+    pub(super) names: ServiceNames,
+    pub(super) iox_config: Config,
+    pub(super) registry: EnvRegistry,
+    pub(super) pool: WorkerPool,
+    pub(super) leases: Vec<Lease>,
+    pub(super) started: Instant,
+    pub(super) instance: u32,
+    pub(super) next_lease: u32,
+    pub(super) env_steps: u64,
+    pub(super) reclaimed: u64,
+    pub(super) shutdown: Shutdown,
+    control: Server<ipc::Service, [u8], echogym_protocol::ControlHeader, [u8], echogym_protocol::ControlHeader>,
+    wake: Listener<ipc::Service>,
+    _control_service: ControlService<ipc::Service>,
+    _wake_service: EventService<ipc::Service>,
+    pub(super) node: Node<ipc::Service>,
+}
+
+/// One ready exchange: the lease, its action sample and the loaned observation sample.
+struct Ready {
+    lease: usize,
+    op: Op,
+    action: Sample<ipc::Service, [u8], ActionHeader>,
+    obs: SampleMut<ipc::Service, [u8], ObsHeader>,
+}
+
+impl Dispatcher {
+    /// Create the node and the server-wide services. Fails if a live server already
+    /// uses the name; stale resources of a dead one are cleaned first.
+    pub fn start(
+        options: DispatcherOptions,
+        registry: EnvRegistry,
+        shutdown: Shutdown,
+    ) -> Result<Self, StartError> {
+        let names = ServiceNames::new(&options.name)?;
+        let iox_config = options.location.iceoryx_config()?;
+        let node_name = format!("echogym-serve-{}-{}", options.name, std::process::id());
+        let node = NodeBuilder::new()
+            .config(&iox_config)
+            .name(&NodeName::new(&node_name).map_err(|e| StartError::Node(format!("{e:?}")))?)
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<ipc::Service>()
+            .map_err(|e| StartError::Node(format!("{e:?}")))?;
+        node.try_cleanup_dead_nodes();
+        super::permissions::harden(&options.location);
+
+        let control_service = match control_service(&node, &names.control(), Access::Create) {
+            Ok(service) => service,
+            Err(e) => {
+                return Err(match running_server_pid(&iox_config, &options.name) {
+                    Some(pid) => StartError::AlreadyRunning {
+                        name: options.name.clone(),
+                        pid: Some(pid),
+                    },
+                    None if e.reason.contains("AlreadyExists") => StartError::AlreadyRunning {
+                        name: options.name.clone(),
+                        pid: None,
+                    },
+                    None => e.into(),
+                });
+            }
+        };
+        let control = control_service
+            .server_builder()
+            .initial_max_slice_len(64 * 1024)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .create()
+            .map_err(|e| ServiceError::new(&names.control(), e))?;
+        let wake_service = event_service(&node, &names.wake(), MAX_CLIENTS, Access::Create)?;
+        let wake = wake_service
+            .listener_builder()
+            .create()
+            .map_err(|e| ServiceError::new(&names.wake(), e))?;
+        let pool = WorkerPool::new(options.threads)?;
+        let instance = (std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.subsec_nanos())
+            ^ std::process::id().rotate_left(16))
+            & 0x7fff_ffff;
+        tracing::info!(
+            name = %options.name,
+            pid = std::process::id(),
+            threads = pool.threads(),
+            prefix = %options.location.prefix,
+            root = %options.location.root.display(),
+            "echogym server listening"
+        );
+        Ok(Self {
+            names,
+            iox_config,
+            registry,
+            pool,
+            leases: Vec::new(),
+            started: Instant::now(),
+            instance,
+            next_lease: 1,
+            env_steps: 0,
+            reclaimed: 0,
+            shutdown,
+            control,
+            wake,
+            _control_service: control_service,
+            _wake_service: wake_service,
+            node,
+            options,
+        })
+    }
+
+    /// Serve until shutdown is requested, then stop cleanly: the exchange in flight
+    /// finishes, every lease is told `ServerStopped`, every service is removed.
+    pub fn run(mut self) {
+        let spin = self.options.spin;
+        let housekeeping = self.options.housekeeping;
+        let mut last_work = Instant::now();
+        let mut next_housekeeping = last_work + housekeeping;
+        while !self.shutdown.is_requested() {
+            if self.serve_once() {
+                last_work = Instant::now();
+            }
+            let now = Instant::now();
+            if now >= next_housekeeping {
+                self.housekeeping();
+                next_housekeeping = now + housekeeping;
+            }
+            if now.duration_since(last_work) < spin {
+                std::hint::spin_loop();
+                continue;
+            }
+            // Drain, poll once more, then block (see the module docs for why this order).
+            let _ = self.wake.try_wait(|_| {});
+            if self.serve_once() {
+                last_work = Instant::now();
+                continue;
+            }
+            let timeout = next_housekeeping.saturating_duration_since(Instant::now());
+            let _ = self.wake.timed_wait(|_| {}, timeout.max(Duration::from_millis(1)));
+            last_work = Instant::now();
+        }
+        self.stop();
+    }
+
+    /// Serve every waiting control request and exchange once; true if any was waiting.
+    fn serve_once(&mut self) -> bool {
+        let control = self.serve_control();
+        let leases = self.serve_leases();
+        control || leases
+    }
+
+    fn serve_control(&mut self) -> bool {
+        let mut served = false;
+        loop {
+            let request = match self.control.receive() {
+                Ok(Some(request)) => request,
+                Ok(None) => break,
+                Err(e) => {
+                    tracing::debug!(error = ?e, "receiving a control request failed");
+                    break;
+                }
+            };
+            served = true;
+            let reply = self.handle_control(*request.user_header(), request.payload());
+            let text = serde_json::to_vec(&reply).expect("replies serialize");
+            let sent = request.loan_slice_uninit(text.len()).and_then(|mut response| {
+                *response.user_header_mut() = echogym_protocol::ControlHeader {
+                    protocol_version: PROTOCOL_VERSION,
+                    payload_len: text.len() as u32,
+                };
+                Ok(response.write_from_slice(&text))
+            });
+            let sent = sent
+                .map_err(|e| format!("{e:?}"))
+                .and_then(|response| response.send().map_err(|e| format!("{e:?}")));
+            if let Err(e) = sent {
+                tracing::debug!(error = ?e, "sending a control reply failed");
+            }
+        }
+        served
+    }
+
+    fn serve_leases(&mut self) -> bool {
+        let mut ready = Vec::new();
+        for (index, lease) in self.leases.iter().enumerate() {
+            let Some(action) = lease.poll() else { continue };
+            let header = *action.user_header();
+            match check_header(&header, lease) {
+                Err(status) => lease.publish_status(header.seq, status, None, None),
+                Ok(op) => {
+                    if let Some(obs) = lease.loan() {
+                        ready.push(Ready {
+                            lease: index,
+                            op,
+                            action,
+                            obs,
+                        });
+                    }
+                }
+            }
+        }
+        if ready.is_empty() {
+            return false;
+        }
+        self.exchange_all(&mut ready);
+        for ready in ready {
+            let lease = &self.leases[ready.lease];
+            lease.publish(ready.obs);
+        }
+        true
+    }
+
+    /// Run the exchanges of every ready lease, in parallel across leases when several
+    /// are ready (each batch also parallelizes across its envs).
+    fn exchange_all(&mut self, ready: &mut [Ready]) {
+        let wanted: Vec<usize> = ready.iter().map(|r| r.lease).collect();
+        let mut work: Vec<(Op, &[u8], &mut [u8], u64)> = ready
+            .iter_mut()
+            .map(|r| {
+                let seq = r.action.user_header().seq;
+                (r.op, r.action.payload(), r.obs.payload_mut(), seq)
+            })
+            .collect();
+        let mut batches: Vec<&mut crate::pool::EnvBatch> = self
+            .leases
+            .iter_mut()
+            .enumerate()
+            .filter(|(index, _)| wanted.binary_search(index).is_ok())
+            .map(|(_, lease)| &mut lease.batch)
+            .collect();
+        // `ready` is sorted by lease index already (built in order), so work and
+        // batches line up.
+        let pool = &self.pool;
+        let results: Vec<(u64, Result<u64, crate::pool::ExchangeError>)> = if work.len() == 1 {
+            let (op, action, obs, seq) = &mut work[0];
+            vec![(*seq, batches[0].exchange(pool, *op, action, obs))]
+        } else {
+            pool.install(|| {
+                work.par_iter_mut()
+                    .zip(batches.par_iter_mut())
+                    .map(|((op, action, obs, seq), batch)| {
+                        (*seq, batch.exchange(pool, *op, action, obs))
+                    })
+                    .collect()
+            })
+        };
+        drop(work);
+        drop(batches);
+        for (ready, (seq, result)) in ready.iter_mut().zip(results) {
+            let lease = &mut self.leases[ready.lease];
+            lease.exchanges += 1;
+            let header = ready.obs.user_header_mut();
+            header.seq = seq;
+            header.num_envs = lease.batch.len() as u32;
+            header.env_index = u32::MAX;
+            header.element_index = u32::MAX;
+            match result {
+                Ok(steps) => {
+                    self.env_steps += steps;
+                    header.status = StepStatus::Ok as u32;
+                }
+                Err(e) => {
+                    tracing::debug!(lease = lease.id, error = %e, "exchange refused");
+                    header.status = e.status as u32;
+                    header.env_index = e.env_index.map_or(u32::MAX, |i| i as u32);
+                    header.element_index = e.element_index.map_or(u32::MAX, |i| i as u32);
+                }
+            }
+        }
+    }
+
+    fn housekeeping(&mut self) {
+        self.reclaim_dead_clients();
+        if let Some(parent) = self.options.parent_pid
+            && std::os::unix::process::parent_id() != parent
+        {
+            tracing::info!(parent, "parent process is gone; stopping");
+            self.shutdown.request();
+        }
+    }
+
+    /// Drop every lease whose client node is no longer alive.
+    fn reclaim_dead_clients(&mut self) {
+        if self.leases.is_empty() {
+            return;
+        }
+        let mut alive = Vec::new();
+        let mut dead = 0usize;
+        let listed = Node::<ipc::Service>::list(&self.iox_config, |state| {
+            match &state {
+                NodeState::Alive(view) => {
+                    use iceoryx2::node::NodeView;
+                    alive.push(view.id().value());
+                }
+                NodeState::Dead(_) => dead += 1,
+                _ => {}
+            }
+            CallbackProgression::Continue
+        });
+        if let Err(e) = listed {
+            tracing::debug!(error = ?e, "listing nodes failed");
+            return;
+        }
+        let before = self.leases.len();
+        self.leases.retain(|lease| {
+            let keep = alive.contains(&lease.client_node);
+            if !keep {
+                tracing::info!(
+                    lease = lease.id,
+                    client = %lease.client_label,
+                    "reclaimed the lease of a dead client"
+                );
+            }
+            keep
+        });
+        self.reclaimed += (before - self.leases.len()) as u64;
+        if dead > 0 {
+            let cleaned = self.node.try_cleanup_dead_nodes();
+            tracing::trace!(?cleaned, "cleaned resources of dead nodes");
+        }
+    }
+
+    fn stop(mut self) {
+        for lease in &self.leases {
+            lease.publish_status(0, StepStatus::ServerStopped, None, None);
+        }
+        let leases = self.leases.len();
+        self.leases.clear();
+        tracing::info!(name = %self.options.name, leases, "echogym server stopped");
+    }
+}
+
+/// Check an action header against its lease; the op on success.
+fn check_header(header: &ActionHeader, lease: &Lease) -> Result<Op, StepStatus> {
+    if header.protocol_version != PROTOCOL_VERSION {
+        return Err(StepStatus::VersionMismatch);
+    }
+    if header.lease_id != lease.id || header.num_envs as usize != lease.batch.len() {
+        return Err(StepStatus::ShapeMismatch);
+    }
+    Op::from_u32(header.op).ok_or(StepStatus::UnknownOp)
+}
+
+/// The pid of a live server node called `name`, if one exists.
+fn running_server_pid(config: &Config, name: &str) -> Option<u32> {
+    use iceoryx2::node::NodeView;
+    let prefix = format!("echogym-serve-{name}-");
+    let mut pid = None;
+    let _ = Node::<ipc::Service>::list(config, |state| {
+        if let NodeState::Alive(view) = &state
+            && let Some(details) = view.details()
+            && let Some(rest) = details.name().to_string().strip_prefix(&prefix)
+        {
+            pid = rest.parse().ok();
+            return CallbackProgression::Stop;
+        }
+        CallbackProgression::Continue
+    });
+    pid.filter(|&p| p != std::process::id())
+}

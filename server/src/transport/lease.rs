@@ -1,0 +1,134 @@
+//! A lease on the server side: a batch of envs and the three services it talks over.
+
+use std::time::Instant;
+
+use echogym_protocol::{ActionHeader, ObsHeader, ServiceNames, StepStatus};
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use iceoryx2::sample_mut::SampleMut;
+
+use super::services::{
+    Access, ActionService, EventService, ObsService, ServiceError, event_service, lease_channel,
+};
+use crate::pool::EnvBatch;
+
+/// Server-side state of one lease.
+pub(crate) struct Lease {
+    pub id: u64,
+    pub client_node: u128,
+    pub client_label: String,
+    pub created: Instant,
+    pub exchanges: u64,
+    pub batch: EnvBatch,
+    subscriber: Subscriber<ipc::Service, [u8], ActionHeader>,
+    publisher: Publisher<ipc::Service, [u8], ObsHeader>,
+    notifier: Notifier<ipc::Service>,
+    // Services last: ports must drop before the services they belong to.
+    _action_service: ActionService<ipc::Service>,
+    _obs_service: ObsService<ipc::Service>,
+    _ready_service: EventService<ipc::Service>,
+}
+
+impl Lease {
+    /// Create the lease's services and ports.
+    pub fn open(
+        node: &Node<ipc::Service>,
+        names: &ServiceNames,
+        id: u64,
+        batch: EnvBatch,
+        client_node: u128,
+        client_label: String,
+    ) -> Result<Self, ServiceError> {
+        let action_name = names.lease_action(id);
+        let obs_name = names.lease_obs(id);
+        let ready_name = names.lease_ready(id);
+        let action_service = lease_channel::<_, ActionHeader>(node, &action_name, Access::Create)?;
+        let obs_service = lease_channel::<_, ObsHeader>(node, &obs_name, Access::Create)?;
+        let ready_service = event_service(node, &ready_name, 1, Access::Create)?;
+        let subscriber = action_service
+            .subscriber_builder()
+            .create()
+            .map_err(|e| ServiceError::new(&action_name, e))?;
+        let publisher = obs_service
+            .publisher_builder()
+            .initial_max_slice_len(batch.layout().obs.total)
+            .allocation_strategy(AllocationStrategy::Static)
+            .create()
+            .map_err(|e| ServiceError::new(&obs_name, e))?;
+        let notifier = ready_service
+            .notifier_builder()
+            .create()
+            .map_err(|e| ServiceError::new(&ready_name, e))?;
+        Ok(Self {
+            id,
+            client_node,
+            client_label,
+            created: Instant::now(),
+            exchanges: 0,
+            batch,
+            subscriber,
+            publisher,
+            notifier,
+            _action_service: action_service,
+            _obs_service: obs_service,
+            _ready_service: ready_service,
+        })
+    }
+
+    /// The next waiting action sample, if any.
+    pub fn poll(
+        &self,
+    ) -> Option<iceoryx2::sample::Sample<ipc::Service, [u8], ActionHeader>> {
+        match self.subscriber.receive() {
+            Ok(sample) => sample,
+            Err(e) => {
+                tracing::debug!(lease = self.id, error = ?e, "receiving an action failed");
+                None
+            }
+        }
+    }
+
+    /// Loan a zero-filled observation sample.
+    pub fn loan(&self) -> Option<SampleMut<ipc::Service, [u8], ObsHeader>> {
+        let total = self.batch.layout().obs.total;
+        match self.publisher.loan_slice_uninit(total) {
+            Ok(sample) => Some(sample.write_from_fn(|_| 0u8)),
+            Err(e) => {
+                tracing::debug!(lease = self.id, error = ?e, "loaning an observation failed");
+                None
+            }
+        }
+    }
+
+    /// Publish `sample` and wake the client.
+    pub fn publish(&self, sample: SampleMut<ipc::Service, [u8], ObsHeader>) {
+        if let Err(e) = sample.send() {
+            tracing::debug!(lease = self.id, error = ?e, "publishing an observation failed");
+        }
+        if let Err(e) = self.notifier.notify() {
+            tracing::debug!(lease = self.id, error = ?e, "waking the client failed");
+        }
+    }
+
+    /// Publish a status-only answer (an error, or the server stopping).
+    pub fn publish_status(
+        &self,
+        seq: u64,
+        status: StepStatus,
+        env_index: Option<usize>,
+        element_index: Option<usize>,
+    ) {
+        if let Some(mut sample) = self.loan() {
+            *sample.user_header_mut() = ObsHeader {
+                seq,
+                status: status as u32,
+                env_index: env_index.map_or(u32::MAX, |i| i as u32),
+                element_index: element_index.map_or(u32::MAX, |i| i as u32),
+                num_envs: self.batch.len() as u32,
+            };
+            self.publish(sample);
+        }
+    }
+}

@@ -1,0 +1,16 @@
+//! The server side of the shared-memory transport.
+//!
+//! One dispatcher thread owns every iceoryx2 port (`ipc::Service` ports are `!Send`),
+//! polls the leases' action subscribers, runs exchanges on the [`crate::pool`] and
+//! publishes observations. Waiting is spin-then-block on both sides: see
+//! [`dispatcher`] for the wake-up protocol.
+
+mod control;
+mod dispatcher;
+mod error;
+mod lease;
+mod permissions;
+pub(crate) mod services;
+
+pub use dispatcher::{Dispatcher, DispatcherOptions, Shutdown};
+pub use error::StartError;
