@@ -1,1 +1,62 @@
+//! `echogym._native`: the Python extension over echogym's Rust client.
+//!
+//! Thin by design: [`client::NativeClient`] and [`lease::NativeLease`] wrap
+//! `echogym::client`, [`views`] turns the server's shared-memory observation sample into
+//! read-only numpy arrays without copying, [`errors`] defines the exception tree and
+//! [`cli_main`] runs the `echogym` command line in-process (used by the console script and
+//! by auto-started private servers).
 
+mod client;
+mod errors;
+mod lease;
+mod views;
+
+use pyo3::prelude::*;
+
+/// Run the `echogym` command line with `argv` (program name first); the exit code.
+/// The GIL is released while it runs (a server runs until stopped).
+#[pyfunction]
+fn cli_main(py: Python<'_>, argv: Vec<String>) -> u8 {
+    py.detach(|| echogym::cli::main_with_args(argv.into_iter().map(Into::into)))
+}
+
+/// Resolve the spec of `env_id` for `config_json` locally (no server), as JSON.
+/// Unknown ids raise `UnknownEnvError`, bad configs `InvalidConfigError`.
+#[pyfunction]
+fn resolve_spec(env_id: &str, config_json: &str) -> PyResult<String> {
+    let config: serde_json::Map<String, serde_json::Value> = serde_json::from_str(config_json)
+        .map_err(|e| {
+            pyo3::exceptions::PyValueError::new_err(format!("config must be a JSON object: {e}"))
+        })?;
+    let registry = echogym::envs::EnvRegistry::default();
+    let factory = registry
+        .get(env_id)
+        .map_err(|e| errors::UnknownEnvError::new_err(e.to_string()))?;
+    let spec = factory
+        .spec(&config)
+        .map_err(|e| errors::InvalidConfigError::new_err(e.to_string()))?;
+    Ok(serde_json::to_string(&spec).expect("spec serializes"))
+}
+
+/// The registered env ids with their one-line descriptions.
+#[pyfunction]
+fn registered_envs() -> Vec<(String, String)> {
+    echogym::envs::EnvRegistry::default()
+        .list()
+        .into_iter()
+        .map(|e| (e.env_id, e.description))
+        .collect()
+}
+
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("PROTOCOL_VERSION", echogym_protocol::PROTOCOL_VERSION)?;
+    m.add_class::<client::NativeClient>()?;
+    m.add_class::<lease::NativeLease>()?;
+    m.add_function(wrap_pyfunction!(cli_main, m)?)?;
+    m.add_function(wrap_pyfunction!(resolve_spec, m)?)?;
+    m.add_function(wrap_pyfunction!(registered_envs, m)?)?;
+    errors::register(m)?;
+    Ok(())
+}

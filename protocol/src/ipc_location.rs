@@ -5,8 +5,8 @@
 
 use std::path::{Path, PathBuf};
 
-use iceoryx2::prelude::{Config, FileName, SemanticString};
 use iceoryx2::prelude::Path as IoxPath;
+use iceoryx2::prelude::{Config, FileName, SemanticString};
 
 /// Environment variable overriding [`IpcLocation::prefix`] on both sides.
 pub const PREFIX_ENV: &str = "ECHOGYM_IPC_PREFIX";
@@ -48,7 +48,9 @@ impl Default for IpcLocation {
 
 fn default_root() -> PathBuf {
     use std::os::unix::fs::MetadataExt;
-    let uid = std::fs::metadata("/proc/self").map(|m| m.uid()).unwrap_or(0);
+    let uid = std::fs::metadata("/proc/self")
+        .map(|m| m.uid())
+        .unwrap_or(0);
     PathBuf::from(format!("/tmp/echogym-{uid}/"))
 }
 

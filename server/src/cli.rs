@@ -5,7 +5,6 @@
 
 use std::ffi::OsString;
 use std::path::PathBuf;
-use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand};
@@ -122,17 +121,14 @@ impl ServeArgs {
     }
 }
 
-/// Run the CLI with `args` (including the program name); the process exit code.
-pub fn main_with_args(args: impl IntoIterator<Item = OsString>) -> ExitCode {
+/// Run the CLI with `args` (including the program name); the process exit status
+/// (0 success, 1 failure, 2 usage error).
+pub fn main_with_args(args: impl IntoIterator<Item = OsString>) -> u8 {
     let cli = match Cli::try_parse_from(args) {
         Ok(cli) => cli,
         Err(e) => {
             let _ = e.print();
-            return if e.use_stderr() {
-                ExitCode::from(2)
-            } else {
-                ExitCode::SUCCESS
-            };
+            return if e.use_stderr() { 2 } else { 0 };
         }
     };
     let result = match cli.command {
@@ -147,10 +143,10 @@ pub fn main_with_args(args: impl IntoIterator<Item = OsString>) -> ExitCode {
         }
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(()) => 0,
         Err(message) => {
             eprintln!("echogym: {message}");
-            ExitCode::FAILURE
+            1
         }
     }
 }
@@ -199,7 +195,10 @@ fn status(target: &Target, json: bool) -> Result<(), String> {
         return Err(format!("unexpected reply: {reply:?}"));
     };
     if json {
-        println!("{}", serde_json::to_string_pretty(&status).expect("status serializes"));
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&status).expect("status serializes")
+        );
         return Ok(());
     }
     println!(
@@ -219,7 +218,12 @@ fn status(target: &Target, json: bool) -> Result<(), String> {
     for lease in &status.leases {
         println!(
             "  lease {:>20}  {:<24} x{:<5} {:>10} exchanges  {:>8.1} s  {}",
-            lease.lease_id, lease.env_id, lease.num_envs, lease.exchanges, lease.age_s, lease.client_label
+            lease.lease_id,
+            lease.env_id,
+            lease.num_envs,
+            lease.exchanges,
+            lease.age_s,
+            lease.client_label
         );
     }
     Ok(())
@@ -227,7 +231,10 @@ fn status(target: &Target, json: bool) -> Result<(), String> {
 
 fn stop(target: &Target) -> Result<(), String> {
     let connection = connect(target)?;
-    match connection.request(&ControlRequest::Stop).map_err(|e| e.to_string())? {
+    match connection
+        .request(&ControlRequest::Stop)
+        .map_err(|e| e.to_string())?
+    {
         ControlReply::Stopping => {
             // Wait for the server to go away so scripts can rely on it being gone.
             let deadline = std::time::Instant::now() + Duration::from_secs(10);

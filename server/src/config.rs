@@ -121,10 +121,12 @@ impl ServeConfig {
             key: "name",
             message: e.to_string(),
         })?;
-        self.ipc.iceoryx_config().map_err(|e| ConfigError::Invalid {
-            key: "ipc",
-            message: e.to_string(),
-        })?;
+        self.ipc
+            .iceoryx_config()
+            .map_err(|e| ConfigError::Invalid {
+                key: "ipc",
+                message: e.to_string(),
+            })?;
         Ok(())
     }
 
@@ -157,7 +159,11 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("echogym-config-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let good = dir.join("good.toml");
-        std::fs::write(&good, "name = \"lab\"\nspin_us = 5\n[ipc]\nprefix = \"p_\"\nroot = \"/tmp/r/\"\n").unwrap();
+        std::fs::write(
+            &good,
+            "name = \"lab\"\nspin_us = 5\n[ipc]\nprefix = \"p_\"\nroot = \"/tmp/r/\"\n",
+        )
+        .unwrap();
         let config = ServeConfig::load(Some(&good)).unwrap();
         assert_eq!(config.name, "lab");
         assert_eq!(config.spin_us, 5);

@@ -1,5 +1,5 @@
 //! The `echogym` binary: see [`echogym::cli`].
 
 fn main() -> std::process::ExitCode {
-    echogym::cli::main_with_args(std::env::args_os())
+    std::process::ExitCode::from(echogym::cli::main_with_args(std::env::args_os()))
 }

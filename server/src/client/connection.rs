@@ -15,8 +15,7 @@ use crate::transport::services::{
     Access, ControlService, EventService, MAX_CLIENTS, control_service, event_service,
 };
 
-type ControlClient =
-    Client<ipc_threadsafe::Service, [u8], ControlHeader, [u8], ControlHeader>;
+type ControlClient = Client<ipc_threadsafe::Service, [u8], ControlHeader, [u8], ControlHeader>;
 
 /// How to reach a server.
 #[derive(Debug, Clone)]
@@ -67,8 +66,8 @@ pub struct Connection {
 impl Connection {
     /// Attach to the running server named `options.name`.
     pub fn connect(options: &ConnectOptions) -> Result<Self, ConnectError> {
-        let names =
-            ServiceNames::new(&options.name).map_err(|e| ConnectError::InvalidOptions(e.to_string()))?;
+        let names = ServiceNames::new(&options.name)
+            .map_err(|e| ConnectError::InvalidOptions(e.to_string()))?;
         let config = options
             .location
             .iceoryx_config()
@@ -142,7 +141,19 @@ impl Connection {
     /// Send a control request and wait for its reply. Refusals come back as
     /// [`ControlCallError::Refused`].
     pub fn request(&self, request: &ControlRequest) -> Result<ControlReply, ControlCallError> {
-        let reply = self.inner.request(request, self.inner.options.control_timeout)?;
+        self.request_with_version(PROTOCOL_VERSION, request)
+    }
+
+    /// [`Connection::request`] claiming protocol `version` (tests of version checks).
+    #[doc(hidden)]
+    pub fn request_with_version(
+        &self,
+        version: u32,
+        request: &ControlRequest,
+    ) -> Result<ControlReply, ControlCallError> {
+        let reply = self
+            .inner
+            .request(version, request, self.inner.options.control_timeout)?;
         match reply {
             ControlReply::Error(e) => Err(ControlCallError::Refused {
                 kind: e.kind,
@@ -156,6 +167,7 @@ impl Connection {
 impl Inner {
     pub(crate) fn request(
         &self,
+        version: u32,
         request: &ControlRequest,
         timeout: Duration,
     ) -> Result<ControlReply, ControlCallError> {
@@ -165,7 +177,7 @@ impl Inner {
             .loan_slice_uninit(text.len())
             .map_err(|e| ControlCallError::Ipc(format!("{e:?}")))?;
         *loan.user_header_mut() = ControlHeader {
-            protocol_version: PROTOCOL_VERSION,
+            protocol_version: version,
             payload_len: text.len() as u32,
         };
         let pending = loan

@@ -6,7 +6,9 @@ use echogym_protocol::ControlErrorKind;
 #[derive(Debug, thiserror::Error)]
 pub enum ConnectError {
     /// No server with that name is running at that ipc location.
-    #[error("no echogym server named {name:?} is running (ipc prefix {prefix:?}, root {root:?}); start one with `echogym serve --name {name}`")]
+    #[error(
+        "no echogym server named {name:?} is running (ipc prefix {prefix:?}, root {root:?}); start one with `echogym serve --name {name}`"
+    )]
     ServerNotRunning {
         /// The server name.
         name: String,

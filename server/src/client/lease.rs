@@ -4,8 +4,7 @@ use std::time::Duration;
 
 use echogym_protocol::{
     ActionHeader, AttachReply, AttachRequest, AutoresetMode, BatchLayout, ControlErrorKind,
-    ControlReply, ControlRequest, EnvSpec, ObsHeader, Op, PROTOCOL_VERSION, ResetFlag,
-    StepStatus,
+    ControlReply, ControlRequest, EnvSpec, ObsHeader, Op, PROTOCOL_VERSION, ResetFlag, StepStatus,
 };
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::publisher::Publisher;
@@ -80,22 +79,32 @@ impl Lease {
         let inner = &connection.inner;
         let ipc = |e: &dyn std::fmt::Debug| ControlCallError::Ipc(format!("{e:?}"));
         let id = reply.lease_id;
-        let action_service =
-            lease_channel::<_, ActionHeader>(&inner.node, &inner.names.lease_action(id), Access::Open)
-                .map_err(|e| ipc(&e))?;
+        let action_service = lease_channel::<_, ActionHeader>(
+            &inner.node,
+            &inner.names.lease_action(id),
+            Access::Open,
+        )
+        .map_err(|e| ipc(&e))?;
         let obs_service =
             lease_channel::<_, ObsHeader>(&inner.node, &inner.names.lease_obs(id), Access::Open)
                 .map_err(|e| ipc(&e))?;
-        let ready_service = event_service(&inner.node, &inner.names.lease_ready(id), 1, Access::Open)
-            .map_err(|e| ipc(&e))?;
+        let ready_service =
+            event_service(&inner.node, &inner.names.lease_ready(id), 1, Access::Open)
+                .map_err(|e| ipc(&e))?;
         let publisher = action_service
             .publisher_builder()
             .initial_max_slice_len(reply.layout.action.total)
             .allocation_strategy(AllocationStrategy::Static)
             .create()
             .map_err(|e| ipc(&e))?;
-        let subscriber = obs_service.subscriber_builder().create().map_err(|e| ipc(&e))?;
-        let listener = ready_service.listener_builder().create().map_err(|e| ipc(&e))?;
+        let subscriber = obs_service
+            .subscriber_builder()
+            .create()
+            .map_err(|e| ipc(&e))?;
+        let listener = ready_service
+            .listener_builder()
+            .create()
+            .map_err(|e| ipc(&e))?;
         Ok(Self {
             reply,
             seq: 0,
@@ -250,9 +259,7 @@ impl Lease {
                 match subscriber.receive() {
                     Ok(Some(sample)) => {
                         let header = *sample.user_header();
-                        if header.seq == seq
-                            || header.status == StepStatus::ServerStopped as u32
-                        {
+                        if header.seq == seq || header.status == StepStatus::ServerStopped as u32 {
                             return Ok(Some(sample));
                         }
                         // A stale answer (e.g. to an exchange abandoned by an error): skip.
@@ -288,9 +295,9 @@ impl Lease {
             Some(StepStatus::NonFiniteAction) => Some(LeaseError::NonFiniteAction { env, element }),
             Some(StepStatus::NeedsReset) => Some(LeaseError::NeedsReset { env }),
             Some(StepStatus::EnvFailure) => Some(LeaseError::EnvFailure { env }),
-            Some(StepStatus::BadResetFlag) => {
-                Some(LeaseError::BadReset(format!("bad reset flag for env {env}")))
-            }
+            Some(StepStatus::BadResetFlag) => Some(LeaseError::BadReset(format!(
+                "bad reset flag for env {env}"
+            ))),
             Some(StepStatus::VersionMismatch) => Some(LeaseError::VersionMismatch),
             Some(StepStatus::ServerStopped) => {
                 self.closed = true;
@@ -334,12 +341,28 @@ impl Lease {
         let request = ControlRequest::Detach {
             lease_id: self.reply.lease_id,
         };
-        match self.connection.inner.request(&request, Duration::from_secs(5)) {
+        match self
+            .connection
+            .inner
+            .request(PROTOCOL_VERSION, &request, Duration::from_secs(5))
+        {
             Ok(ControlReply::Detached { .. }) => {}
             Ok(ControlReply::Error(e)) if e.kind == ControlErrorKind::UnknownLease => {}
             Ok(other) => tracing::debug!(?other, "unexpected reply to detach"),
             Err(e) => tracing::debug!(error = %e, "detach failed"),
         }
+    }
+}
+
+impl std::fmt::Debug for Lease {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Lease")
+            .field("id", &self.reply.lease_id)
+            .field("env_id", &self.reply.spec.env_id)
+            .field("num_envs", &self.reply.layout.num_envs)
+            .field("autoreset_mode", &self.reply.autoreset_mode)
+            .field("closed", &self.closed)
+            .finish()
     }
 }
 

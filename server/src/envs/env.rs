@@ -50,7 +50,12 @@ impl<'a> EnvOutput<'a> {
     /// If the field is not float32: a bug in the env, caught by the pool.
     pub fn f32_field(&mut self, index: usize) -> &mut [f32] {
         let field = &self.fields[index];
-        assert_eq!(field.dtype, DType::Float32, "field {} is not float32", field.name);
+        assert_eq!(
+            field.dtype,
+            DType::Float32,
+            "field {} is not float32",
+            field.name
+        );
         let bytes = &mut self.record[field.offset..field.offset + field.byte_len()];
         bytemuck::cast_slice_mut(bytes)
     }
@@ -61,7 +66,12 @@ impl<'a> EnvOutput<'a> {
     /// If the field is not uint8: a bug in the env, caught by the pool.
     pub fn u8_field(&mut self, index: usize) -> &mut [u8] {
         let field = &self.fields[index];
-        assert_eq!(field.dtype, DType::Uint8, "field {} is not uint8", field.name);
+        assert_eq!(
+            field.dtype,
+            DType::Uint8,
+            "field {} is not uint8",
+            field.name
+        );
         &mut self.record[field.offset..field.offset + field.byte_len()]
     }
 

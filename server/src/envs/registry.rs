@@ -72,7 +72,12 @@ impl EnvRegistry {
             .map(|f| f.as_ref())
             .ok_or_else(|| UnknownEnv {
                 id: id.to_owned(),
-                known: self.factories.keys().copied().collect::<Vec<_>>().join(", "),
+                known: self
+                    .factories
+                    .keys()
+                    .copied()
+                    .collect::<Vec<_>>()
+                    .join(", "),
             })
     }
 

@@ -68,6 +68,9 @@ struct Job<'a> {
     panicked: bool,
 }
 
+/// The typed blocks of an action sample: actions, reset flags, seeds.
+type ActionBlocks<'a> = (&'a [f32], &'a [u8], &'a [u64]);
+
 /// The envs of one lease.
 pub struct EnvBatch {
     spec: EnvSpec,
@@ -176,7 +179,7 @@ impl EnvBatch {
         op: Op,
         action: &'a [u8],
         obs_len: usize,
-    ) -> Result<(&'a [f32], &'a [u8], &'a [u64]), ExchangeError> {
+    ) -> Result<ActionBlocks<'a>, ExchangeError> {
         let layout = &self.layout;
         let (k, a) = (layout.num_envs, layout.action_size);
         if action.len() < layout.action.total || obs_len < layout.obs.total {
@@ -193,8 +196,8 @@ impl EnvBatch {
                 .map_err(|_| misaligned())?;
 
         for (env, (&flag, slot)) in flags.iter().zip(&self.slots).enumerate() {
-            let flag = ResetFlag::from_u8(flag)
-                .ok_or(ExchangeError::at(StepStatus::BadResetFlag, env))?;
+            let flag =
+                ResetFlag::from_u8(flag).ok_or(ExchangeError::at(StepStatus::BadResetFlag, env))?;
             if op != Op::Step || flag != ResetFlag::Keep {
                 continue;
             }
@@ -226,82 +229,83 @@ impl EnvBatch {
             }
         }
     }
-
 }
 
 /// Split the observation sample into one job per env.
 fn split_jobs<'a>(
-        l: &BatchLayout,
-        clipped: &'a [f32],
-        flags: &[u8],
-        seeds: &[u64],
-        obs: &'a mut [u8],
-    ) -> Result<Vec<Job<'a>>, ExchangeError> {
-        let (k, r, i) = (l.num_envs, l.obs_record_bytes, l.info_len);
-        let shape = || ExchangeError::new(StepStatus::ShapeMismatch);
-        let cut = |buf: &'a mut [u8], at: usize| buf.split_at_mut(at);
+    l: &BatchLayout,
+    clipped: &'a [f32],
+    flags: &[u8],
+    seeds: &[u64],
+    obs: &'a mut [u8],
+) -> Result<Vec<Job<'a>>, ExchangeError> {
+    let (k, r, i) = (l.num_envs, l.obs_record_bytes, l.info_len);
+    let shape = || ExchangeError::new(StepStatus::ShapeMismatch);
+    let cut = |buf: &'a mut [u8], at: usize| buf.split_at_mut(at);
 
-        let (_, rest) = cut(obs, l.obs.obs);
-        let (records, rest) = cut(rest, l.obs.reward - l.obs.obs);
-        let (reward, rest) = cut(rest, l.obs.terminated - l.obs.reward);
-        let (terminated, rest) = cut(rest, l.obs.truncated - l.obs.terminated);
-        let (truncated, rest) = cut(rest, l.obs.info - l.obs.truncated);
-        let info_end = l.obs.final_obs.unwrap_or(l.obs.total);
-        let (info, rest) = cut(rest, info_end - l.obs.info);
-        let (final_records, final_info) = match (l.obs.final_obs, l.obs.final_info) {
-            (Some(fo), Some(fi)) => {
-                let (records, rest) = cut(rest, fi - fo);
-                let (info, _) = cut(rest, l.obs.total - fi);
-                (Some(records), Some(info))
-            }
-            _ => (None, None),
-        };
-
-        let reward: &mut [f32] = bytemuck::try_cast_slice_mut(&mut reward[..k * 4]).map_err(|_| shape())?;
-        let info: &mut [f32] = bytemuck::try_cast_slice_mut(&mut info[..k * i * 4]).map_err(|_| shape())?;
-        let mut final_records = final_records.map(|b| b[..k * r].chunks_mut(r.max(1)));
-        let mut final_info = match final_info {
-            Some(b) => Some(
-                bytemuck::try_cast_slice_mut::<u8, f32>(&mut b[..k * i * 4])
-                    .map_err(|_| shape())?
-                    .chunks_mut(i.max(1)),
-            ),
-            None => None,
-        };
-
-        let a = l.action_size;
-        let mut records = records[..k * r].chunks_mut(r.max(1));
-        let mut info_rows = info.chunks_mut(i.max(1));
-        let mut jobs = Vec::with_capacity(k);
-        for (env, ((reward, terminated), truncated)) in reward
-            .iter_mut()
-            .zip(terminated[..k].iter_mut())
-            .zip(truncated[..k].iter_mut())
-            .enumerate()
-        {
-            jobs.push(Job {
-                action: &clipped[env * a..(env + 1) * a],
-                reset: ResetFlag::from_u8(flags[env]).expect("validated"),
-                seed: seeds[env],
-                record: records.next().unwrap_or_default(),
-                info: if i == 0 {
-                    &mut []
-                } else {
-                    info_rows.next().unwrap_or_default()
-                },
-                reward,
-                terminated,
-                truncated,
-                final_record: final_records.as_mut().and_then(|c| c.next()),
-                final_info: if i == 0 {
-                    None
-                } else {
-                    final_info.as_mut().and_then(|c| c.next())
-                },
-                panicked: false,
-            });
+    let (_, rest) = cut(obs, l.obs.obs);
+    let (records, rest) = cut(rest, l.obs.reward - l.obs.obs);
+    let (reward, rest) = cut(rest, l.obs.terminated - l.obs.reward);
+    let (terminated, rest) = cut(rest, l.obs.truncated - l.obs.terminated);
+    let (truncated, rest) = cut(rest, l.obs.info - l.obs.truncated);
+    let info_end = l.obs.final_obs.unwrap_or(l.obs.total);
+    let (info, rest) = cut(rest, info_end - l.obs.info);
+    let (final_records, final_info) = match (l.obs.final_obs, l.obs.final_info) {
+        (Some(fo), Some(fi)) => {
+            let (records, rest) = cut(rest, fi - fo);
+            let (info, _) = cut(rest, l.obs.total - fi);
+            (Some(records), Some(info))
         }
-        Ok(jobs)
+        _ => (None, None),
+    };
+
+    let reward: &mut [f32] =
+        bytemuck::try_cast_slice_mut(&mut reward[..k * 4]).map_err(|_| shape())?;
+    let info: &mut [f32] =
+        bytemuck::try_cast_slice_mut(&mut info[..k * i * 4]).map_err(|_| shape())?;
+    let mut final_records = final_records.map(|b| b[..k * r].chunks_mut(r.max(1)));
+    let mut final_info = match final_info {
+        Some(b) => Some(
+            bytemuck::try_cast_slice_mut::<u8, f32>(&mut b[..k * i * 4])
+                .map_err(|_| shape())?
+                .chunks_mut(i.max(1)),
+        ),
+        None => None,
+    };
+
+    let a = l.action_size;
+    let mut records = records[..k * r].chunks_mut(r.max(1));
+    let mut info_rows = info.chunks_mut(i.max(1));
+    let mut jobs = Vec::with_capacity(k);
+    for (env, ((reward, terminated), truncated)) in reward
+        .iter_mut()
+        .zip(terminated[..k].iter_mut())
+        .zip(truncated[..k].iter_mut())
+        .enumerate()
+    {
+        jobs.push(Job {
+            action: &clipped[env * a..(env + 1) * a],
+            reset: ResetFlag::from_u8(flags[env]).expect("validated"),
+            seed: seeds[env],
+            record: records.next().unwrap_or_default(),
+            info: if i == 0 {
+                &mut []
+            } else {
+                info_rows.next().unwrap_or_default()
+            },
+            reward,
+            terminated,
+            truncated,
+            final_record: final_records.as_mut().and_then(|c| c.next()),
+            final_info: if i == 0 {
+                None
+            } else {
+                final_info.as_mut().and_then(|c| c.next())
+            },
+            panicked: false,
+        });
+    }
+    Ok(jobs)
 }
 
 /// One env's work for one exchange.
@@ -328,7 +332,6 @@ fn run_job(
                 match mode {
                     AutoresetMode::Disabled => slot.needs_reset = true,
                     AutoresetMode::SameStep => {
-                        drop(out);
                         if let Some(final_record) = job.final_record.as_deref_mut() {
                             final_record.copy_from_slice(job.record);
                         }

@@ -61,7 +61,10 @@ impl WorkerPool {
     ) {
         let n = items.len();
         if self.threads <= 1 || n <= 1 || cost_per_item_ns * n as f64 <= PARALLEL_THRESHOLD_NS {
-            items.iter_mut().zip(jobs.iter_mut()).for_each(|(a, b)| work(a, b));
+            items
+                .iter_mut()
+                .zip(jobs.iter_mut())
+                .for_each(|(a, b)| work(a, b));
             return;
         }
         // Chunks of at least ~threshold/2 of work each, and at most one per thread.

@@ -30,7 +30,12 @@ impl Dispatcher {
         let len = (header.payload_len as usize).min(payload.len());
         let request: ControlRequest = match serde_json::from_slice(&payload[..len]) {
             Ok(request) => request,
-            Err(e) => return error(ControlErrorKind::InvalidRequest, format!("malformed request: {e}")),
+            Err(e) => {
+                return error(
+                    ControlErrorKind::InvalidRequest,
+                    format!("malformed request: {e}"),
+                );
+            }
         };
         match request {
             ControlRequest::Attach(attach) => self.attach(attach),
@@ -56,12 +61,18 @@ impl Dispatcher {
 
     fn attach(&mut self, request: AttachRequest) -> ControlReply {
         if self.shutdown.is_requested() {
-            return error(ControlErrorKind::ShuttingDown, "the server is shutting down");
+            return error(
+                ControlErrorKind::ShuttingDown,
+                "the server is shutting down",
+            );
         }
         let Ok(client_node) = request.client_node_id.parse::<u128>() else {
             return error(
                 ControlErrorKind::InvalidRequest,
-                format!("client_node_id {:?} is not a node id", request.client_node_id),
+                format!(
+                    "client_node_id {:?} is not a node id",
+                    request.client_node_id
+                ),
             );
         };
         let factory = match self.registry.get(&request.env_id) {
@@ -75,7 +86,10 @@ impl Dispatcher {
         if self.leases.len() >= self.options.max_leases {
             return error(
                 ControlErrorKind::CapacityExceeded,
-                format!("the server holds its maximum of {} leases", self.options.max_leases),
+                format!(
+                    "the server holds its maximum of {} leases",
+                    self.options.max_leases
+                ),
             );
         }
         let envs_in_use: usize = self.leases.iter().map(|l| l.batch.len()).sum();

@@ -29,8 +29,7 @@ use rayon::prelude::*;
 use super::error::StartError;
 use super::lease::Lease;
 use super::services::{
-    Access, ControlService, EventService, MAX_CLIENTS, ServiceError, control_service,
-    event_service,
+    Access, ControlService, EventService, MAX_CLIENTS, ServiceError, control_service, event_service,
 };
 use crate::envs::EnvRegistry;
 use crate::pool::WorkerPool;
@@ -98,7 +97,13 @@ pub struct Dispatcher {
     pub(super) env_steps: u64,
     pub(super) reclaimed: u64,
     pub(super) shutdown: Shutdown,
-    control: Server<ipc::Service, [u8], echogym_protocol::ControlHeader, [u8], echogym_protocol::ControlHeader>,
+    control: Server<
+        ipc::Service,
+        [u8],
+        echogym_protocol::ControlHeader,
+        [u8],
+        echogym_protocol::ControlHeader,
+    >,
     wake: Listener<ipc::Service>,
     _control_service: ControlService<ipc::Service>,
     _wake_service: EventService<ipc::Service>,
@@ -222,7 +227,9 @@ impl Dispatcher {
                 continue;
             }
             let timeout = next_housekeeping.saturating_duration_since(Instant::now());
-            let _ = self.wake.timed_wait(|_| {}, timeout.max(Duration::from_millis(1)));
+            let _ = self
+                .wake
+                .timed_wait(|_| {}, timeout.max(Duration::from_millis(1)));
             last_work = Instant::now();
         }
         self.stop();
@@ -249,14 +256,15 @@ impl Dispatcher {
             served = true;
             let reply = self.handle_control(*request.user_header(), request.payload());
             let text = serde_json::to_vec(&reply).expect("replies serialize");
-            let sent = request.loan_slice_uninit(text.len()).and_then(|mut response| {
-                *response.user_header_mut() = echogym_protocol::ControlHeader {
-                    protocol_version: PROTOCOL_VERSION,
-                    payload_len: text.len() as u32,
-                };
-                Ok(response.write_from_slice(&text))
-            });
-            let sent = sent
+            let sent = request
+                .loan_slice_uninit(text.len())
+                .map(|mut response| {
+                    *response.user_header_mut() = echogym_protocol::ControlHeader {
+                        protocol_version: PROTOCOL_VERSION,
+                        payload_len: text.len() as u32,
+                    };
+                    response.write_from_slice(&text)
+                })
                 .map_err(|e| format!("{e:?}"))
                 .and_then(|response| response.send().map_err(|e| format!("{e:?}")));
             if let Err(e) = sent {

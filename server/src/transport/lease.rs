@@ -78,9 +78,7 @@ impl Lease {
     }
 
     /// The next waiting action sample, if any.
-    pub fn poll(
-        &self,
-    ) -> Option<iceoryx2::sample::Sample<ipc::Service, [u8], ActionHeader>> {
+    pub fn poll(&self) -> Option<iceoryx2::sample::Sample<ipc::Service, [u8], ActionHeader>> {
         match self.subscriber.receive() {
             Ok(sample) => sample,
             Err(e) => {

@@ -1,0 +1,107 @@
+"""Connecting to a server and leasing envs: the layer the gymnasium and torchrl adapters use."""
+
+from __future__ import annotations
+
+import json
+import os
+from typing import Any
+
+import numpy as np
+
+from echogym._native import NativeClient, NativeLease
+from echogym.private_server import connect_or_start
+
+DEFAULT_SERVER = "default"
+
+
+def default_server_name() -> str:
+    """`$ECHOGYM_SERVER`, else ``"default"``."""
+    return os.environ.get("ECHOGYM_SERVER", DEFAULT_SERVER)
+
+
+class Client:
+    """A connection to one echogym server.
+
+    Create with :func:`connect`. Cheap to keep around; leases keep it alive.
+    """
+
+    def __init__(self, native: NativeClient) -> None:
+        self.native = native
+
+    @property
+    def name(self) -> str:
+        """The server name."""
+        return self.native.name
+
+    def request(self, op: str, **fields: Any) -> dict[str, Any]:
+        """Send a control request (``op`` is ``status``, ``list_envs``, ``spec``, ``stop``, ...)."""
+        return json.loads(self.native.request(json.dumps({"op": op, **fields})))
+
+    def status(self) -> dict[str, Any]:
+        """The server's status: pid, uptime, leases, counters."""
+        return self.request("status")
+
+    def list_envs(self) -> list[dict[str, str]]:
+        """The env ids the server can host."""
+        return self.request("list_envs")["envs"]
+
+    def stop(self) -> None:
+        """Ask the server to stop gracefully."""
+        self.request("stop")
+
+    def attach(
+        self,
+        env_id: str,
+        num_envs: int = 1,
+        config: dict[str, Any] | None = None,
+        autoreset_mode: str = "disabled",
+    ) -> NativeLease:
+        """Lease ``num_envs`` envs of ``env_id``; see :class:`echogym._native.NativeLease`."""
+        return self.native.attach(env_id, num_envs, json.dumps(config or {}), autoreset_mode)
+
+
+def connect(
+    name: str | None = None,
+    *,
+    autostart: bool = False,
+    prefix: str | None = None,
+    root: str | None = None,
+    spin_us: int | None = None,
+    label: str | None = None,
+) -> Client:
+    """Attach to the running server ``name`` (default ``$ECHOGYM_SERVER`` or ``"default"``).
+
+    With ``autostart=True`` a private server is started when none is running, and
+    stopped when this process exits. ``prefix``/``root`` select the iceoryx2 location
+    (default ``$ECHOGYM_IPC_PREFIX`` / ``$ECHOGYM_IPC_ROOT``); ``spin_us`` is how long
+    to busy-poll for an answer before blocking (default ``$ECHOGYM_SPIN_US`` or 200).
+
+    Raises :class:`echogym.ServerNotRunningError` when no server runs and ``autostart``
+    is false.
+    """
+    name = name or default_server_name()
+    spin = spin_us if spin_us is not None else int(os.environ.get("ECHOGYM_SPIN_US", "200"))
+    label = label or f"pid {os.getpid()} python"
+    if autostart:
+        native = connect_or_start(name, prefix, root, spin, label)
+    else:
+        native = NativeClient(name, prefix, root, spin, label)
+    return Client(native)
+
+
+def as_actions(action: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """``action`` as a C-contiguous float32 array of ``shape``.
+
+    Floating arrays of any width are cast; anything else (ints, bools, objects, wrong
+    shape) raises :class:`echogym.InvalidActionError` naming the problem.
+    """
+    from echogym.errors import InvalidActionError
+
+    array = np.asarray(action)
+    if array.dtype.kind != "f":
+        raise InvalidActionError(
+            f"actions must be floating point (float32), got dtype {array.dtype}"
+        )
+    if array.shape != shape:
+        raise InvalidActionError(f"actions must have shape {shape}, got {array.shape}")
+    return np.ascontiguousarray(array, dtype=np.float32)

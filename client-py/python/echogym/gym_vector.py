@@ -1,0 +1,132 @@
+"""`EchoVectorEnv`: a batch of server-side envs as one `gymnasium.vector.VectorEnv`.
+
+One exchange with the server steps the whole batch (in parallel on the server's
+workers). Observations, rewards and flags are **read-only numpy views onto shared
+memory, valid until the next** ``step``/``reset``; copy what you keep longer.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from echogym import spaces as echo_spaces
+from echogym.client import as_actions, connect
+
+_MODES = {"same_step": AutoresetMode.SAME_STEP, "disabled": AutoresetMode.DISABLED}
+
+
+class EchoVectorEnv(VectorEnv):
+    """``num_envs`` echogym envs stepped with one shared-memory exchange.
+
+    Args:
+        env_id: Versioned echogym id.
+        num_envs: Envs in the batch.
+        server: Server name (default ``$ECHOGYM_SERVER`` or ``"default"``).
+        autostart: Start a private server if none is running (default true).
+        autoreset_mode: ``"same_step"`` (default: ended envs restart within the step;
+            the last observation is in ``infos["final_obs"]``) or ``"disabled"``
+            (reset ended envs with ``reset(options={"reset_mask": mask})``).
+        **config: Env config; unknown keys raise :class:`echogym.InvalidConfigError`.
+    """
+
+    def __init__(
+        self,
+        env_id: str,
+        num_envs: int = 1,
+        *,
+        server: str | None = None,
+        autostart: bool = True,
+        autoreset_mode: str | AutoresetMode = "same_step",
+        render_mode: str | None = None,
+        **config: Any,
+    ) -> None:
+        if render_mode is not None:
+            raise ValueError(f"render_mode {render_mode!r} is not supported by {env_id}")
+        mode = autoreset_mode.value if isinstance(autoreset_mode, AutoresetMode) else autoreset_mode
+        if mode not in _MODES:
+            raise ValueError(f"autoreset_mode must be 'same_step' or 'disabled', got {mode!r}")
+        self.autoreset_mode = _MODES[mode]
+        self.metadata = {"autoreset_mode": self.autoreset_mode, "render_modes": []}
+        self.render_mode = None
+        self.num_envs = num_envs
+        self._client = connect(server, autostart=autostart)
+        self._lease = self._client.attach(env_id, num_envs, config, mode)
+        self.echo_spec: dict[str, Any] = json.loads(self._lease.spec_json)
+        self.single_observation_space = echo_spaces.observation_space(self.echo_spec)
+        self.single_action_space = echo_spaces.action_space(self.echo_spec)
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self._action_shape = (num_envs, self.echo_spec["action"]["size"])
+        self._info_keys: list[str] = self.echo_spec["info_keys"]
+        self._all = np.ones(num_envs, dtype=bool)
+
+    def _infos(self, info: np.ndarray) -> dict[str, Any]:
+        infos: dict[str, Any] = {}
+        for i, key in enumerate(self._info_keys):
+            infos[key] = info[:, i]
+            infos["_" + key] = self._all
+        return infos
+
+    def reset(
+        self,
+        *,
+        seed: int | list[int | None] | None = None,
+        options: dict[str, Any] | None = None,
+    ) -> tuple[Any, dict[str, Any]]:
+        """Reset all envs (or those in ``options["reset_mask"]``).
+
+        ``seed`` is an int (env ``i`` gets ``seed + i``) or one seed per env.
+        """
+        if isinstance(seed, int):
+            seeds: list[int | None] | None = [seed + i for i in range(self.num_envs)]
+        else:
+            seeds = seed
+        if seeds is not None and len(seeds) != self.num_envs:
+            raise ValueError(f"expected {self.num_envs} seeds, got {len(seeds)}")
+        mask = None
+        if options is not None and "reset_mask" in options:
+            mask = np.asarray(options["reset_mask"], dtype=bool)
+            if mask.shape != (self.num_envs,):
+                raise ValueError(f"reset_mask must have shape ({self.num_envs},)")
+        fields, _, _, _, info, _, _ = self._lease.reset(mask, seeds)
+        return echo_spaces.obs_from_fields(self.echo_spec, fields), self._infos(info)
+
+    def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """Step every env with ``actions`` (shape ``(num_envs, action_size)``)."""
+        actions = as_actions(actions, self._action_shape)
+        fields, reward, terminated, truncated, info, final_fields, final_info = self._lease.step(
+            actions
+        )
+        infos = self._infos(info)
+        if final_fields is not None:
+            done = terminated | truncated
+            if done.any():
+                final_obs = np.empty(self.num_envs, dtype=object)
+                final_infos = np.empty(self.num_envs, dtype=object)
+                for i in np.flatnonzero(done):
+                    final_obs[i] = echo_spaces.obs_from_fields(
+                        self.echo_spec, tuple(f[i].copy() for f in final_fields)
+                    )
+                    final_infos[i] = {
+                        key: float(final_info[i, j]) for j, key in enumerate(self._info_keys)
+                    }
+                infos["final_obs"] = final_obs
+                infos["_final_obs"] = done.copy()
+                infos["final_info"] = final_infos
+                infos["_final_info"] = done.copy()
+        return (
+            echo_spaces.obs_from_fields(self.echo_spec, fields),
+            reward,
+            terminated,
+            truncated,
+            infos,
+        )
+
+    def close_extras(self, **kwargs: Any) -> None:
+        """Give the lease back to the server."""
+        self._lease.close()
