@@ -54,12 +54,20 @@ impl NativeClient {
     }
 
     /// Send a JSON control request (`{"op": "status"}`, ...) and return the JSON reply.
-    /// Refusals raise the matching `EchogymError` subclass.
-    fn request(&self, py: Python<'_>, request_json: &str) -> PyResult<String> {
+    /// Refusals raise the matching `EchogymError` subclass. `protocol_version` overrides
+    /// the version claimed (for tests of the version check).
+    #[pyo3(signature = (request_json, protocol_version = None))]
+    fn request(
+        &self,
+        py: Python<'_>,
+        request_json: &str,
+        protocol_version: Option<u32>,
+    ) -> PyResult<String> {
         let request: ControlRequest = serde_json::from_str(request_json)
             .map_err(|e| PyValueError::new_err(format!("malformed control request: {e}")))?;
+        let version = protocol_version.unwrap_or(echogym_protocol::PROTOCOL_VERSION);
         let reply = py
-            .detach(|| self.connection.request(&request))
+            .detach(|| self.connection.request_with_version(version, &request))
             .map_err(control_error)?;
         Ok(serde_json::to_string(&reply).expect("replies serialize"))
     }
@@ -95,7 +103,7 @@ impl NativeClient {
         let lease = py
             .detach(|| self.connection.attach(&options))
             .map_err(control_error)?;
-        Ok(NativeLease::new(lease))
+        NativeLease::new(py, lease)
     }
 
     /// The server name.

@@ -1,6 +1,6 @@
 //! `NativeLease`: a leased batch of envs with zero-copy observation views.
 
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 use echogym::client::Lease;
 use echogym_protocol::{BatchLayout, ObsField};
@@ -14,10 +14,19 @@ use crate::views;
 /// Views cached per sample slot; the publisher cycles through a few fixed slots.
 const VIEW_CACHE_SLOTS: usize = 16;
 
+/// The base object of every observation array: keeps the lease (and so the mapping of
+/// its shared memory) alive while any array exists. Separate from [`NativeLease`] so that
+/// the view cache does not form a reference cycle the garbage collector cannot see.
+#[pyclass(module = "echogym._native", frozen)]
+pub struct SampleMemory {
+    _lease: Arc<Mutex<Lease>>,
+}
+
 /// A leased batch of envs on the server.
 #[pyclass(module = "echogym._native", frozen)]
 pub struct NativeLease {
-    lease: Mutex<Lease>,
+    lease: Arc<Mutex<Lease>>,
+    memory: Py<SampleMemory>,
     layout: BatchLayout,
     fields: Vec<ObsField>,
     spec_json: String,
@@ -26,15 +35,24 @@ pub struct NativeLease {
 }
 
 impl NativeLease {
-    pub(crate) fn new(lease: Lease) -> Self {
-        Self {
-            layout: lease.layout().clone(),
-            fields: lease.spec().observation.clone(),
-            spec_json: serde_json::to_string(lease.spec()).expect("spec serializes"),
-            layout_json: serde_json::to_string(lease.layout()).expect("layout serializes"),
-            lease: Mutex::new(lease),
+    pub(crate) fn new(py: Python<'_>, lease: Lease) -> PyResult<Self> {
+        let lease = Arc::new(Mutex::new(lease));
+        let memory = Py::new(
+            py,
+            SampleMemory {
+                _lease: lease.clone(),
+            },
+        )?;
+        let this = lease.lock().unwrap_or_else(|p| p.into_inner());
+        Ok(Self {
+            layout: this.layout().clone(),
+            fields: this.spec().observation.clone(),
+            spec_json: serde_json::to_string(this.spec()).expect("spec serializes"),
+            layout_json: serde_json::to_string(this.layout()).expect("layout serializes"),
+            lease: lease.clone(),
+            memory,
             cache: Mutex::new(Vec::new()),
-        }
+        })
     }
 
     fn lock(&self) -> std::sync::MutexGuard<'_, Lease> {
@@ -50,9 +68,9 @@ impl NativeLease {
             return Ok(tuple.bind(py).clone());
         }
         // SAFETY: `ptr` is the payload of the sample the lease holds; the mapping lives
-        // as long as the lease's subscriber, which the owner (`slf`) keeps.
-        let tuple =
-            unsafe { views::batch(slf.as_any(), ptr as *const u8, &this.layout, &this.fields)? };
+        // as long as the lease's subscriber, which the arrays' base (`memory`) keeps.
+        let owner = this.memory.bind(py).clone().into_any();
+        let tuple = unsafe { views::batch(&owner, ptr as *const u8, &this.layout, &this.fields)? };
         if cache.len() >= VIEW_CACHE_SLOTS {
             cache.remove(0);
         }

@@ -48,15 +48,39 @@ fn registered_envs() -> Vec<(String, String)> {
         .collect()
 }
 
+/// Shared-memory segments left under `prefix`, besides iceoryx2's node counter
+/// (test support: must be empty once servers and clients of that prefix stopped).
+#[pyfunction]
+fn leftover_segments(prefix: &str) -> Vec<String> {
+    let location = echogym_protocol::IpcLocation {
+        prefix: prefix.to_owned(),
+        ..echogym_protocol::IpcLocation::default()
+    };
+    echogym::testing::leftover_segments(&location)
+}
+
+/// Remove the node counter of `prefix` and the `root` directory (test support; call
+/// only when no server or client of that location runs).
+#[pyfunction]
+fn remove_location(prefix: &str, root: std::path::PathBuf) {
+    echogym::testing::remove_location(&echogym_protocol::IpcLocation {
+        prefix: prefix.to_owned(),
+        root,
+    });
+}
+
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("PROTOCOL_VERSION", echogym_protocol::PROTOCOL_VERSION)?;
     m.add_class::<client::NativeClient>()?;
     m.add_class::<lease::NativeLease>()?;
+    m.add_class::<lease::SampleMemory>()?;
     m.add_function(wrap_pyfunction!(cli_main, m)?)?;
     m.add_function(wrap_pyfunction!(resolve_spec, m)?)?;
     m.add_function(wrap_pyfunction!(registered_envs, m)?)?;
+    m.add_function(wrap_pyfunction!(leftover_segments, m)?)?;
+    m.add_function(wrap_pyfunction!(remove_location, m)?)?;
     errors::register(m)?;
     Ok(())
 }

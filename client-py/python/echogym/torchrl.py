@@ -5,9 +5,11 @@ the same registry the server uses, and the lease is taken on first use. torchrl'
 collectors spawn worker processes that each build the env, and the parent often builds
 a throw-away one; only envs that are actually stepped attach.
 
-Observations go from shared memory into tensors with ``torch.from_numpy`` (no copy);
-they are valid until the next step/reset, which torchrl's collectors respect by
-copying into their own buffers.
+By default observations are copied out of shared memory into fresh tensors (torchrl's
+``rollout`` keeps references to earlier steps). With ``copy_observations=False`` they
+are zero-copy ``torch.from_numpy`` views onto the server's sample, valid until the next
+step/reset of the env: safe with collectors, which copy every step into their own
+buffers, and the fastest path.
 """
 
 from __future__ import annotations
@@ -44,6 +46,8 @@ class EchoEnv(EnvBase):
         server: Server name (default ``$ECHOGYM_SERVER`` or ``"default"``).
         autostart: Start a private server if none is running (default true).
         device: Where tensors are returned (default CPU).
+        copy_observations: Copy observations out of shared memory (default true); see
+            the module docs for the zero-copy mode.
         **config: Env config; unknown keys raise :class:`echogym.InvalidConfigError`.
     """
 
@@ -55,9 +59,11 @@ class EchoEnv(EnvBase):
         server: str | None = None,
         autostart: bool = True,
         device: Any = "cpu",
+        copy_observations: bool = True,
         **config: Any,
     ) -> None:
         super().__init__(device=device, batch_size=torch.Size([num_envs]))
+        self.copy_observations = copy_observations
         self.env_id = env_id
         self.num_envs = num_envs
         self.server = server
@@ -114,7 +120,12 @@ class EchoEnv(EnvBase):
 
     def _obs(self, fields: tuple[np.ndarray, ...], out: dict[str, torch.Tensor]) -> None:
         for field, array in zip(self.echo_spec["observation"], fields):
-            out[field["name"]] = _tensor(array).to(self.device, non_blocking=True)
+            tensor = _tensor(array)
+            if self.device.type != "cpu":
+                tensor = tensor.to(self.device, non_blocking=False)
+            elif self.copy_observations:
+                tensor = tensor.clone()
+            out[field["name"]] = tensor
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs: Any) -> TensorDictBase:
         mask = None
@@ -137,9 +148,9 @@ class EchoEnv(EnvBase):
         )
         out: dict[str, torch.Tensor] = {}
         self._obs(fields, out)
-        term = _tensor(terminated).reshape(self.num_envs, 1).to(self.device)
-        trunc = _tensor(truncated).reshape(self.num_envs, 1).to(self.device)
-        out["reward"] = _tensor(reward).reshape(self.num_envs, 1).to(self.device)
+        term = _tensor(terminated).reshape(self.num_envs, 1).to(self.device, copy=True)
+        trunc = _tensor(truncated).reshape(self.num_envs, 1).to(self.device, copy=True)
+        out["reward"] = _tensor(reward).reshape(self.num_envs, 1).to(self.device, copy=True)
         out["terminated"] = term
         out["truncated"] = trunc
         out["done"] = term | trunc

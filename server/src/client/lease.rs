@@ -38,7 +38,8 @@ pub struct Lease {
     reply: AttachReply,
     seq: u64,
     current: Option<Sample<ipc_threadsafe::Service, [u8], ObsHeader>>,
-    closed: bool,
+    /// Why the lease is unusable: `Closed` after `close`, or the error that ended it.
+    ended: Option<LeaseError>,
     publisher: Publisher<ipc_threadsafe::Service, [u8], ActionHeader>,
     subscriber: Subscriber<ipc_threadsafe::Service, [u8], ObsHeader>,
     listener: Listener<ipc_threadsafe::Service>,
@@ -109,7 +110,7 @@ impl Lease {
             reply,
             seq: 0,
             current: None,
-            closed: false,
+            ended: None,
             publisher,
             subscriber,
             listener,
@@ -145,9 +146,9 @@ impl Lease {
         self.reply.autoreset_mode
     }
 
-    /// True once [`Lease::close`] ran.
+    /// True once [`Lease::close`] ran, or the server stopped or dropped the lease.
     pub fn is_closed(&self) -> bool {
-        self.closed
+        self.ended.is_some()
     }
 
     /// Step every env with `actions` (`num_envs × action_size`, row-major). Envs flagged
@@ -205,8 +206,8 @@ impl Lease {
         flags: Option<&[u8]>,
         seeds: Option<&[u64]>,
     ) -> Result<&[u8], LeaseError> {
-        if self.closed {
-            return Err(LeaseError::Closed);
+        if let Some(reason) = &self.ended {
+            return Err(reason.clone());
         }
         // Release the previous observation before asking for the next one.
         self.current = None;
@@ -282,7 +283,7 @@ impl Lease {
             Ok(sample) => sample,
             Err(e) => {
                 if e == LeaseError::ServerStopped {
-                    self.closed = true;
+                    self.ended = Some(e.clone());
                 }
                 return Err(e);
             }
@@ -300,7 +301,7 @@ impl Lease {
             ))),
             Some(StepStatus::VersionMismatch) => Some(LeaseError::VersionMismatch),
             Some(StepStatus::ServerStopped) => {
-                self.closed = true;
+                self.ended = Some(LeaseError::ServerStopped);
                 Some(LeaseError::ServerStopped)
             }
             Some(StepStatus::UnknownOp | StepStatus::ShapeMismatch) | None => {
@@ -316,13 +317,19 @@ impl Lease {
     /// Why nobody received our action: the server stopped, or it dropped this lease.
     fn gone(&mut self) -> LeaseError {
         let inner = &self.connection.inner;
-        if super::connection::server_alive(&inner.config, inner.names.server()) {
-            self.closed = true;
-            LeaseError::LeaseLost
-        } else {
-            self.closed = true;
-            LeaseError::ServerStopped
+        // A stopping server tells every lease before dropping it: look for that first.
+        let mut stopped = false;
+        while let Ok(Some(sample)) = self.subscriber.receive() {
+            stopped |= sample.user_header().status == StepStatus::ServerStopped as u32;
         }
+        let reason =
+            if !stopped && super::connection::server_alive(&inner.config, inner.names.server()) {
+                LeaseError::LeaseLost
+            } else {
+                LeaseError::ServerStopped
+            };
+        self.ended = Some(reason.clone());
+        reason
     }
 
     /// The observation payload of the last successful exchange, if any.
@@ -333,10 +340,10 @@ impl Lease {
     /// Give the lease back to the server. Idempotent; errors from a server that is
     /// already gone are ignored.
     pub fn close(&mut self) {
-        if self.closed {
+        if self.ended.is_some() {
             return;
         }
-        self.closed = true;
+        self.ended = Some(LeaseError::Closed);
         self.current = None;
         let request = ControlRequest::Detach {
             lease_id: self.reply.lease_id,
@@ -361,7 +368,7 @@ impl std::fmt::Debug for Lease {
             .field("env_id", &self.reply.spec.env_id)
             .field("num_envs", &self.reply.layout.num_envs)
             .field("autoreset_mode", &self.reply.autoreset_mode)
-            .field("closed", &self.closed)
+            .field("ended", &self.ended)
             .finish()
     }
 }
