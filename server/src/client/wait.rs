@@ -2,6 +2,8 @@
 
 use std::time::{Duration, Instant};
 
+use crate::spin::pause;
+
 use iceoryx2::port::listener::Listener;
 use iceoryx2::prelude::*;
 
@@ -16,15 +18,16 @@ pub(crate) fn spin_then_block<T, E>(
     mut try_take: impl FnMut() -> Result<Option<T>, E>,
     mut check_alive: impl FnMut() -> Result<(), E>,
 ) -> Result<T, E> {
-    let spin_until = Instant::now() + spin;
+    let started = Instant::now();
     loop {
         if let Some(value) = try_take()? {
             return Ok(value);
         }
-        if Instant::now() >= spin_until {
+        let waited = started.elapsed();
+        if waited >= spin {
             break;
         }
-        std::hint::spin_loop();
+        pause(waited);
     }
     loop {
         let _ = listener.try_wait(|_| {});

@@ -216,8 +216,9 @@ impl Dispatcher {
                 self.housekeeping();
                 next_housekeeping = now + housekeeping;
             }
-            if now.duration_since(last_work) < spin {
-                std::hint::spin_loop();
+            let idle = now.duration_since(last_work);
+            if idle < spin {
+                crate::spin::pause(idle);
                 continue;
             }
             // Drain, poll once more, then block (see the module docs for why this order).
