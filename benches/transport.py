@@ -150,6 +150,7 @@ def main() -> None:
         f"| (a) step round trip, 1 Null env, p50 | {p50:.1f} µs | ≤ 10 µs | {ok('p50_us', False)} |",
         f"| (a) step round trip, 1 Null env, p99 | {p99:.1f} µs | ≤ 60 µs | {ok('p99_us', False)} |",
         f"| (a) step round trip, 1 Null env, p99.9 | {p999:.1f} µs | | |",
+        f"| (a) p99 over the {args.repeats} runs (min–max) | {min(x[1] for x in lat):.1f}–{max(x[1] for x in lat):.1f} µs | | |",
         f"| (b) Null batch 64, 1 process | {r['batch64_steps_per_s']:,.0f} env-steps/s | ≥ 1,000,000 | {ok('batch64_steps_per_s')} |",
         f"| (b) Null batch 64, 2 processes (sum) | {r['batch64_2proc_steps_per_s']:,.0f} env-steps/s | | |",
         f"| (c) AsyncVectorEnv, 64 py-null envs, shared_memory=True | {r['async_shm_steps_per_s']:,.0f} env-steps/s | | |",
