@@ -1,0 +1,9 @@
+//! Robot arms: models (UR5e, Panda, URDF) and their rapier multibodies.
+
+mod model;
+mod panda;
+mod ur5e;
+
+pub use model::{Capsule, JointSpec, LinkSpec, RobotModel};
+pub use panda::panda;
+pub use ur5e::ur5e;

@@ -1,0 +1,195 @@
+//! [`TorsoParams`]: the soft torso's geometry and material, with the mapping from the
+//! seed's MuJoCo terms to physical units.
+//!
+//! # Parameters in the seed's terms
+//! The seed's composite torso was tuned with MuJoCo reference-acceleration coefficients
+//! `a* = -b·v - k·r` (units 1/s and 1/s²): `stiffness` k = 1324.17 and `damping`
+//! b = 17.59. A coefficient per unit mass becomes a force once a mass is attached; echogym
+//! attaches to each surface particle the **tissue column beneath it**:
+//!
+//! ```text
+//! m_p = density · height · A_p          (A_p: surface area the particle stands for)
+//! k_p = m_p · stiffness      [N/m]      spring of the particle to its rest position
+//! c_p = m_p · damping        [N·s/m]
+//! ```
+//!
+//! so the torso behaves as a Winkler foundation of modulus `κ = density · height ·
+//! stiffness` [N/m³] (139,038 N/m³ for the defaults: 1000 kg/m³ × 0.105 m × 1324.17 /s²)
+//! that does not depend on the particle resolution. Neighbouring particles are coupled by
+//! springs `κ · ℓ²` per grid edge — a membrane of tension `T = κ ℓ²` on the foundation,
+//! so a load spreads over the smoothing length `ℓ` whatever the resolution (the seed's
+//! "equality to neighbours", whose reach was one 3.5 cm cell: default ℓ = 0.035 m), and
+//! the enclosed volume is held by a pressure `p = -bulk_modulus · ΔV / V` (the seed's
+//! "sum of joint displacements constant", softened). The resulting effective stiffness
+//! of the whole torso under the default probe is computed by
+//! [`super::Torso::static_probe_stiffness`] and documented in `docs/physics.md`.
+
+use serde::{Deserialize, Serialize};
+
+/// Geometry and material of the soft torso. Every value has a default; see the module
+/// docs for how `stiffness` and `damping` map to N/m and N·s/m.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TorsoParams {
+    /// World xy of the torso's centre [m]. Default (0.0, 0.0): the arena's torso spot.
+    pub center_xy: [f64; 2],
+    /// World z of the torso's bottom (resting on the table) [m]. Default 0.8, the seed's
+    /// table height.
+    pub bottom_z: f64,
+    /// Box size x (width), y (length), z (height) [m]. Default 0.28 × 0.35 × 0.105, the
+    /// seed's torso.
+    pub size: [f64; 3],
+    /// Target particle spacing on the shell [m]. Default 0.0175 (half the seed's 3.5 cm:
+    /// with the smooth skin, a 10 mm probe does not feel the grid; see `docs/physics.md`).
+    pub spacing: f64,
+    /// Seed-term stiffness k [1/s²] (MuJoCo reference acceleration). Default 1324.17.
+    pub stiffness: f64,
+    /// Seed-term damping b [1/s]. Default 17.59.
+    pub damping: f64,
+    /// Tissue density [kg/m³] giving each particle the mass of its column. Default 1000
+    /// (soft tissue ≈ 1000–1060).
+    pub density: f64,
+    /// Smoothing length ℓ [m]: neighbour springs are `κ·ℓ²` per grid edge, so a load
+    /// spreads ≈ ℓ around the probe. Default 0.035 (the seed's particle spacing).
+    pub smoothing_length: f64,
+    /// Neighbour damping relative to the neighbour spring, as a multiple of
+    /// `damping / stiffness`. Default 1 (same ratio as the particles' own).
+    pub coupling_damping: f64,
+    /// Volume-preservation bulk modulus [Pa]. Default 100,000: a 1 cm press loses ≈ 6 %
+    /// of the displaced volume (the rest bulges out). 0 disables it.
+    pub bulk_modulus: f64,
+    /// Probe–skin contact stiffness per unit contact area [N/m³]. Default 2e8: contact
+    /// penetration stays below 0.1 mm at 10 N, so the tissue, not the contact, sets the
+    /// felt stiffness.
+    pub contact_stiffness: f64,
+    /// Probe–skin contact damping per unit area [N·s/m³]. Default 2e5 (critical-ish for
+    /// the particle masses at 2 ms).
+    pub contact_damping: f64,
+    /// Probe–skin Coulomb friction coefficient. Default 0.1 (gel-coupled skin).
+    pub friction: f64,
+}
+
+impl Default for TorsoParams {
+    fn default() -> Self {
+        Self {
+            center_xy: [0.0, 0.0],
+            bottom_z: 0.8,
+            size: [0.28, 0.35, 0.105],
+            spacing: 0.0175,
+            stiffness: 1324.17,
+            damping: 17.59,
+            density: 1000.0,
+            smoothing_length: 0.035,
+            coupling_damping: 1.0,
+            bulk_modulus: 100_000.0,
+            contact_stiffness: 2e8,
+            contact_damping: 2e5,
+            friction: 0.1,
+        }
+    }
+}
+
+/// A torso parameter out of range.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("torso `{key}` must be {expected}, got {got}")]
+pub struct TorsoParamError {
+    /// The key.
+    pub key: &'static str,
+    /// The allowed range.
+    pub expected: &'static str,
+    /// The value given.
+    pub got: f64,
+}
+
+impl TorsoParams {
+    /// Check ranges (positive sizes, sane resolution, non-negative material values).
+    pub fn validate(&self) -> Result<(), TorsoParamError> {
+        let check = |key, ok: bool, expected, got| {
+            if ok {
+                Ok(())
+            } else {
+                Err(TorsoParamError { key, expected, got })
+            }
+        };
+        for (i, key) in ["size[0]", "size[1]", "size[2]"].into_iter().enumerate() {
+            check(
+                key,
+                self.size[i] > 0.01 && self.size[i] < 2.0,
+                "in (0.01, 2) m",
+                self.size[i],
+            )?;
+        }
+        let smallest = self.size[0].min(self.size[1]).min(self.size[2]);
+        check(
+            "spacing",
+            self.spacing >= 0.004 && self.spacing <= smallest / 2.0,
+            "between 4 mm and half the smallest size",
+            self.spacing,
+        )?;
+        check(
+            "stiffness",
+            self.stiffness > 0.0 && self.stiffness.is_finite(),
+            "positive",
+            self.stiffness,
+        )?;
+        check(
+            "damping",
+            self.damping >= 0.0 && self.damping.is_finite(),
+            "non-negative",
+            self.damping,
+        )?;
+        check(
+            "density",
+            self.density > 0.0 && self.density.is_finite(),
+            "positive",
+            self.density,
+        )?;
+        check(
+            "smoothing_length",
+            (0.0..=0.2).contains(&self.smoothing_length),
+            "in [0, 0.2] m",
+            self.smoothing_length,
+        )?;
+        check(
+            "coupling_damping",
+            self.coupling_damping >= 0.0 && self.coupling_damping <= 1e3,
+            "in [0, 1000]",
+            self.coupling_damping,
+        )?;
+        check(
+            "bulk_modulus",
+            self.bulk_modulus >= 0.0 && self.bulk_modulus.is_finite(),
+            "non-negative",
+            self.bulk_modulus,
+        )?;
+        check(
+            "contact_stiffness",
+            self.contact_stiffness > 0.0 && self.contact_stiffness.is_finite(),
+            "positive",
+            self.contact_stiffness,
+        )?;
+        check(
+            "contact_damping",
+            self.contact_damping >= 0.0 && self.contact_damping.is_finite(),
+            "non-negative",
+            self.contact_damping,
+        )?;
+        check(
+            "friction",
+            (0.0..=2.0).contains(&self.friction),
+            "in [0, 2]",
+            self.friction,
+        )?;
+        Ok(())
+    }
+
+    /// World z of the top surface at rest [m].
+    pub fn top_z(&self) -> f64 {
+        self.bottom_z + self.size[2]
+    }
+
+    /// Winkler modulus κ = density · height · stiffness [N/m³].
+    pub fn winkler_modulus(&self) -> f64 {
+        self.density * self.size[2] * self.stiffness
+    }
+}
