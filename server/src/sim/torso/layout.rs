@@ -88,7 +88,7 @@ impl ShellLayout {
             boundary.push((0, j));
         }
         let outward = |i: usize, j: usize| -> [f64; 3] {
-            let nx_ = if i == 0 {
+            let nx_: f64 = if i == 0 {
                 -1.0
             } else if i == nx - 1 {
                 1.0
