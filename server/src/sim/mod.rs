@@ -1,4 +1,14 @@
 //! Physics: one world per env instance. Knows nothing of transport or Python.
+//!
+//! [`world::World`] wraps rapier3d (table, gravity, fixed 2 ms step, snapshots);
+//! [`robot`] builds UR5e/Panda arms as rapier multibodies with torque actuation and the
+//! dynamics controllers need; [`torso`] is the soft torso of spring-damper particle
+//! joints; [`scene::Scene`] puts arm, probe, force-torque sensor, torso and table together.
 
+pub mod controller;
+pub mod ft_sensor;
+pub mod probe;
 pub mod robot;
+pub mod scene;
 pub mod torso;
+pub mod world;

@@ -1,9 +1,11 @@
 //! Robot arms: models (UR5e, Panda, URDF) and their rapier multibodies.
 
+mod arm;
 mod model;
 mod panda;
 mod ur5e;
 
+pub use arm::{Arm, ArmError, rpy_rotation};
 pub use model::{Capsule, JointSpec, LinkSpec, RobotModel};
 pub use panda::panda;
 pub use ur5e::ur5e;

@@ -1,0 +1,364 @@
+//! [`Scene`]: the seed's arena — a robot arm holding an ultrasound probe with a
+//! force-torque sensor, a soft torso on a table — stepped as one unit.
+//!
+//! One physics step, in named stages: probe state → torso step (the skin's wrench on the
+//! probe over this step) → reset link forces → joint torques → probe wrench → rapier step
+//! → force-torque sensing.
+
+use rapier3d::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::ft_sensor::{FtSensor, FtSensorParams};
+use super::probe::{ProbeParamError, ProbeParams};
+use super::robot::{Arm, ArmError, RobotModel, panda, ur5e};
+use super::torso::{ContactWrench, ProbeKinematics, Torso, TorsoParamError, TorsoParams};
+use super::world::{World, WorldParams, arr3, groups, vec3};
+
+/// Which arm.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum RobotKind {
+    /// Franka Emika Panda (7 DoF).
+    #[default]
+    Panda,
+    /// Universal Robots UR5e (6 DoF).
+    Ur5e,
+}
+
+impl RobotKind {
+    /// The manufacturer's model.
+    pub fn model(self) -> RobotModel {
+        match self {
+            Self::Panda => panda(),
+            Self::Ur5e => ur5e(),
+        }
+    }
+}
+
+/// Everything a scene is built from. Every field has a default (the seed's arena).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SceneParams {
+    /// Timestep, gravity, table.
+    pub world: WorldParams,
+    /// The arm. Default Panda.
+    pub robot: RobotKind,
+    /// World position of the robot base [m]. Default (-0.5, 0, 0.8): on the table,
+    /// half a metre from the torso's centre, within both arms' reach.
+    pub robot_base: [f64; 3],
+    /// Rotation of the base about world z [rad]. Default 0 (facing +x, the torso).
+    pub robot_base_yaw: f64,
+    /// Initial joint positions [rad]; default the model's home pose.
+    pub initial_q: Option<Vec<f64>>,
+    /// The probe.
+    pub probe: ProbeParams,
+    /// The soft torso; `None` for a scene without one. Default the seed's torso.
+    pub torso: Option<TorsoParams>,
+    /// Force-torque sensor imperfections.
+    pub ft_sensor: FtSensorParams,
+    /// Seed of the sensor noise.
+    pub seed: u64,
+}
+
+impl Default for SceneParams {
+    fn default() -> Self {
+        Self {
+            world: WorldParams::default(),
+            robot: RobotKind::Panda,
+            robot_base: [-0.5, 0.0, 0.8],
+            robot_base_yaw: 0.0,
+            initial_q: None,
+            probe: ProbeParams::default(),
+            torso: Some(TorsoParams::default()),
+            ft_sensor: FtSensorParams::default(),
+            seed: 0,
+        }
+    }
+}
+
+/// A scene could not be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SceneError {
+    /// The arm.
+    #[error(transparent)]
+    Arm(#[from] ArmError),
+    /// The torso.
+    #[error(transparent)]
+    Torso(#[from] TorsoParamError),
+    /// The probe.
+    #[error(transparent)]
+    Probe(#[from] ProbeParamError),
+    /// Inconsistent values.
+    #[error("invalid scene: {0}")]
+    Invalid(String),
+}
+
+/// The arena: world, arm, probe with force-torque sensor, torso.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    params: SceneParams,
+    world: World,
+    arm: Arm,
+    probe: ColliderHandle,
+    torso: Option<Torso>,
+    sensor: FtSensor,
+    torso_wrench: ContactWrench,
+    ideal: [f64; 6],
+    reading: [f64; 6],
+    tool_velocity: [f64; 3],
+    in_contact: bool,
+}
+
+impl std::fmt::Debug for World {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("World")
+            .field("time", &self.time())
+            .field("bodies", &self.sets.bodies.len())
+            .field("colliders", &self.sets.colliders.len())
+            .finish()
+    }
+}
+
+impl Scene {
+    /// Build the scene.
+    pub fn new(params: SceneParams) -> Result<Self, SceneError> {
+        params.probe.validate()?;
+        if !(1e-4..=0.02).contains(&params.world.dt) {
+            return Err(SceneError::Invalid(format!(
+                "world.dt must be in [0.0001, 0.02] s, got {}",
+                params.world.dt
+            )));
+        }
+        let mut world = World::new(&params.world);
+        let model = params.robot.model();
+        let base = Pose::from_parts(
+            vec3(params.robot_base),
+            Rotation::from_rotation_z(params.robot_base_yaw as Real),
+        );
+        let arm = Arm::build(&mut world, model, base)?;
+        if let Some(q) = &params.initial_q {
+            if q.len() != arm.dof() {
+                return Err(SceneError::Invalid(format!(
+                    "initial_q has {} values for {} joints",
+                    q.len(),
+                    arm.dof()
+                )));
+            }
+            arm.set_state(&mut world, q, &vec![0.0; q.len()]);
+        }
+        let half = params.probe.half_extents();
+        let local = arm.flange_in_last_link() * Pose::from_translation(vec3([0.0, 0.0, half[2]]));
+        let probe = world.sets.colliders.insert_with_parent(
+            ColliderBuilder::cuboid(half[0] as Real, half[1] as Real, half[2] as Real)
+                .position(local)
+                .mass(params.probe.mass as Real)
+                .collision_groups(InteractionGroups::new(
+                    groups::PROBE,
+                    groups::TABLE | groups::OBJECT,
+                    InteractionTestMode::And,
+                )),
+            arm.last_link(),
+            &mut world.sets.bodies,
+        );
+        let last = arm.last_link();
+        let s = &mut world.sets;
+        s.bodies[last].recompute_mass_properties_from_colliders(&s.colliders);
+        let torso = match &params.torso {
+            Some(t) => Some(Torso::new(t.clone(), params.probe.face)?),
+            None => None,
+        };
+        let sensor = FtSensor::new(params.ft_sensor.clone(), params.seed);
+        let mut scene = Self {
+            params,
+            world,
+            arm,
+            probe,
+            torso,
+            sensor,
+            torso_wrench: ContactWrench::default(),
+            ideal: [0.0; 6],
+            reading: [0.0; 6],
+            tool_velocity: [0.0; 3],
+            in_contact: false,
+        };
+        scene.tool_velocity = scene.tool_center_velocity();
+        Ok(scene)
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &SceneParams {
+        &self.params
+    }
+
+    /// The physics world.
+    pub fn world(&self) -> &World {
+        &self.world
+    }
+
+    /// The physics world, mutably (controllers need Jacobians).
+    pub fn world_mut(&mut self) -> &mut World {
+        &mut self.world
+    }
+
+    /// The arm.
+    pub fn arm(&self) -> &Arm {
+        &self.arm
+    }
+
+    /// The torso, if any.
+    pub fn torso(&self) -> Option<&Torso> {
+        self.torso.as_ref()
+    }
+
+    /// The torso, mutably (e.g. to add force laws).
+    pub fn torso_mut(&mut self) -> Option<&mut Torso> {
+        self.torso.as_mut()
+    }
+
+    /// Physics timestep [s].
+    pub fn dt(&self) -> f64 {
+        self.world.dt()
+    }
+
+    /// Simulated time [s].
+    pub fn time(&self) -> f64 {
+        self.world.time()
+    }
+
+    /// World pose of the probe tip (sensor frame: z out of the face).
+    pub fn tip_pose(&self) -> Pose {
+        self.arm.flange_pose(&self.world)
+            * Pose::from_translation(vec3([0.0, 0.0, self.params.probe.length]))
+    }
+
+    fn tool_center(&self) -> Pose {
+        self.arm.flange_pose(&self.world)
+            * Pose::from_translation(vec3([0.0, 0.0, self.params.probe.length / 2.0]))
+    }
+
+    fn tool_center_velocity(&self) -> [f64; 3] {
+        let body = &self.world.sets.bodies[self.arm.last_link()];
+        let p = self.tool_center().translation;
+        arr3(body.velocity_at_point(p))
+    }
+
+    /// Velocity of the probe tip [m/s] and the probe's angular velocity [rad/s] (world).
+    pub fn tip_velocity(&self) -> ([f64; 3], [f64; 3]) {
+        let body = &self.world.sets.bodies[self.arm.last_link()];
+        let tip = self.tip_pose().translation;
+        (arr3(body.velocity_at_point(tip)), arr3(body.angvel()))
+    }
+
+    /// The probe's state as the torso's contact sees it.
+    pub fn probe_kinematics(&self) -> ProbeKinematics {
+        let tip = self.tip_pose();
+        let body = &self.world.sets.bodies[self.arm.last_link()];
+        let axes = [Vector::X, Vector::Y, Vector::Z].map(|a| arr3(tip.rotation * a));
+        ProbeKinematics {
+            tip: arr3(tip.translation),
+            axes,
+            com: arr3(body.center_of_mass()),
+            linear_velocity: arr3(body.linvel()),
+            angular_velocity: arr3(body.angvel()),
+        }
+    }
+
+    /// Advance one physics step with joint torques `tau` [N·m] (one per joint).
+    pub fn step(&mut self, tau: &[f64]) {
+        let dt = self.dt();
+        let probe = self.probe_kinematics();
+        self.torso_wrench = match &mut self.torso {
+            Some(torso) => torso.step(dt, Some(&probe)),
+            None => ContactWrench::default(),
+        };
+        self.arm.reset_forces(&mut self.world);
+        self.arm.apply_torques(&mut self.world, tau);
+        let last = &mut self.world.sets.bodies[self.arm.last_link()];
+        last.add_force(vec3(self.torso_wrench.force), true);
+        last.add_torque(vec3(self.torso_wrench.torque), true);
+        self.world.step();
+        self.sense(dt, probe.com);
+    }
+
+    /// Compute the force-torque reading after a step (see [`super::ft_sensor`]).
+    fn sense(&mut self, dt: f64, com_before: [f64; 3]) {
+        let tip = self.tip_pose();
+        let tip_p = arr3(tip.translation);
+        let (rigid_f, rigid_t) = self.world.contact_wrench_on(self.probe, tip_p);
+        let w = &self.torso_wrench;
+        let lever = sub(com_before, tip_p);
+        let torso_t = add(w.torque, cross(lever, w.force));
+        let mut force = add(rigid_f, w.force);
+        let mut torque = add(rigid_t, torso_t);
+        let m = self.params.probe.mass;
+        let g = self.world.gravity();
+        let center = arr3(self.tool_center().translation);
+        let velocity = self.tool_center_velocity();
+        let accel = scale(sub(velocity, self.tool_velocity), 1.0 / dt);
+        self.tool_velocity = velocity;
+        let load = if self.params.ft_sensor.compensate_tool_weight {
+            scale(accel, -m)
+        } else {
+            scale(sub(g, accel), m)
+        };
+        force = add(force, load);
+        torque = add(torque, cross(sub(center, tip_p), load));
+        let inv = tip.rotation.inverse();
+        let f = arr3(inv * vec3(force));
+        let t = arr3(inv * vec3(torque));
+        self.ideal = [f[0], f[1], f[2], t[0], t[1], t[2]];
+        self.reading = self.sensor.measure(self.ideal, dt);
+        self.in_contact = w.in_contact() || rigid_f.iter().any(|v| v.abs() > 1e-9);
+    }
+
+    /// The force-torque sensor's reading `[fx, fy, fz, tx, ty, tz]` in the sensor frame
+    /// [N, N·m], after the last step.
+    pub fn ft_reading(&self) -> [f64; 6] {
+        self.reading
+    }
+
+    /// The ideal (noise-free, unfiltered) reading after the last step.
+    pub fn ft_ideal(&self) -> [f64; 6] {
+        self.ideal
+    }
+
+    /// Whether the probe touched anything (skin, table, objects) in the last step.
+    pub fn in_contact(&self) -> bool {
+        self.in_contact
+    }
+
+    /// The skin's wrench on the probe in the last step (world, about the link's centre of
+    /// mass).
+    pub fn torso_wrench(&self) -> ContactWrench {
+        self.torso_wrench
+    }
+
+    /// Torques that hold the arm and probe against gravity [N·m].
+    pub fn gravity_torques(&mut self) -> Vec<f64> {
+        self.arm
+            .gravity_torques(&mut self.world)
+            .iter()
+            .copied()
+            .collect()
+    }
+}
+
+fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
