@@ -335,11 +335,14 @@ impl Scene {
 
     /// Torques that hold the arm and probe against gravity [N·m].
     pub fn gravity_torques(&mut self) -> Vec<f64> {
-        self.arm
-            .gravity_torques(&mut self.world)
-            .iter()
-            .copied()
-            .collect()
+        self.arm.update_kinematics(&mut self.world);
+        self.arm.gravity_torques(&self.world).iter().copied().collect()
+    }
+
+    /// The arm and the world, with the arm's kinematics updated (for controllers).
+    pub fn arm_kinematics(&mut self) -> (&Arm, &World) {
+        self.arm.update_kinematics(&mut self.world);
+        (&self.arm, &self.world)
     }
 }
 

@@ -54,7 +54,10 @@ pub struct WorldParams {
     pub dt: f64,
     /// Gravity [m/s²]. Default (0, 0, -9.81).
     pub gravity: [f64; 3],
-    /// rapier solver iterations per step. Default 4 (rapier's default).
+    /// rapier solver iterations per step. Default 1 (rapier's default is 4): echogym's
+    /// scenes have no contact stacks (the torso is solved by its own implicit solver), and
+    /// with 1 iteration the arm steps 3× faster (≈ 59k vs 20k steps/s measured) while
+    /// every physics validation still passes. Raise it for stacked rigid objects.
     pub solver_iterations: usize,
     /// The table.
     pub table: TableParams,
@@ -65,7 +68,7 @@ impl Default for WorldParams {
         Self {
             dt: 0.002,
             gravity: [0.0, 0.0, -9.81],
-            solver_iterations: 4,
+            solver_iterations: 1,
             table: TableParams::default(),
         }
     }

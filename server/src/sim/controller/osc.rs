@@ -88,8 +88,7 @@ impl Osc {
     pub fn torques(&self, scene: &mut Scene) -> Vec<f64> {
         let tip = scene.tip_pose();
         let tip_p = arr3(tip.translation);
-        let arm = scene.arm().clone();
-        let world = scene.world_mut();
+        let (arm, world) = scene.arm_kinematics();
         let j = arm.point_jacobian(world, tip_p);
         let m = arm.mass_matrix(world);
         let g = arm.gravity_torques(world);

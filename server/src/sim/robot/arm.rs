@@ -309,7 +309,10 @@ impl Arm {
         }
     }
 
-    fn refresh(&self, world: &mut World) {
+    /// Recompute forward kinematics and the link Jacobians for the current joint state;
+    /// call once before [`Arm::point_jacobian`], [`Arm::mass_matrix`] and
+    /// [`Arm::gravity_torques`] (they read the cached values).
+    pub fn update_kinematics(&self, world: &mut World) {
         let s = &mut world.sets;
         let (mb, _) = s.multibody_joints.get_mut(self.handle).expect("arm");
         mb.forward_kinematics(&s.bodies, true);
@@ -317,8 +320,7 @@ impl Arm {
 
     /// Jacobian (6 × dof, rows `[linear; angular]`, world frame) of the point `point`
     /// [m, world] rigidly attached to the last link.
-    pub fn point_jacobian(&self, world: &mut World, point: [f64; 3]) -> DMatrix<f64> {
-        self.refresh(world);
+    pub fn point_jacobian(&self, world: &World, point: [f64; 3]) -> DMatrix<f64> {
         let (mb, _) = world.sets.multibody_joints.get(self.handle).expect("arm");
         let last = *self.link_ids.last().expect("links");
         let body_j = mb.body_jacobian(last);
@@ -349,8 +351,7 @@ impl Arm {
     }
 
     /// Joint-space mass matrix `M(q)` (dof × dof).
-    pub fn mass_matrix(&self, world: &mut World) -> DMatrix<f64> {
-        self.refresh(world);
+    pub fn mass_matrix(&self, world: &World) -> DMatrix<f64> {
         let (mb, _) = world.sets.multibody_joints.get(self.handle).expect("arm");
         let n = self.dof();
         let mut m = DMatrix::zeros(n, n);
@@ -383,9 +384,8 @@ impl Arm {
     }
 
     /// Joint torques [N·m] that hold the arm (and its tool) against gravity `g`.
-    pub fn gravity_torques(&self, world: &mut World) -> DVector<f64> {
+    pub fn gravity_torques(&self, world: &World) -> DVector<f64> {
         let g = world.gravity();
-        self.refresh(world);
         let (mb, _) = world.sets.multibody_joints.get(self.handle).expect("arm");
         let mut tau = DVector::zeros(self.dof());
         for (k, &id) in self.link_ids.iter().enumerate() {

@@ -8,7 +8,7 @@ use super::skin::Skin;
 use super::solver::{ContactRow, System, Workspace, conjugate_gradient};
 
 /// Relative residual at which the implicit solve stops.
-const CG_TOLERANCE: f64 = 1e-9;
+const CG_TOLERANCE: f64 = 1e-6;
 /// Iteration cap of the implicit solve (reached only in violent transients).
 const CG_MAX_ITERATIONS: usize = 200;
 /// Velocity scale of the friction regularisation [m/s].
