@@ -27,7 +27,11 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// Steps/s of `step` run for `seconds` (after `warmup` steps), median of `repeats`.
-fn rate(repeats: usize, seconds: f64, mut make: impl FnMut() -> Box<dyn FnMut()>) -> (f64, Vec<f64>) {
+fn rate(
+    repeats: usize,
+    seconds: f64,
+    mut make: impl FnMut() -> Box<dyn FnMut()>,
+) -> (f64, Vec<f64>) {
     let mut runs = Vec::new();
     for _ in 0..repeats {
         let mut step = make();
@@ -64,7 +68,11 @@ fn torso_press(params: TorsoParams) -> Box<dyn FnMut()> {
     let mut t = 0.0f64;
     Box::new(move || {
         let phase = (t * 0.04 / 0.16).fract();
-        let (y, vy) = if phase < 0.5 { (-0.08 + 0.32 * phase, 0.04) } else { (0.24 - 0.32 * phase, -0.04) };
+        let (y, vy) = if phase < 0.5 {
+            (-0.08 + 0.32 * phase, 0.04)
+        } else {
+            (0.24 - 0.32 * phase, -0.04)
+        };
         torso.step(0.002, Some(&probe_at(0.0, y, top - 0.008, vy)));
         t += 0.002;
     })
@@ -83,7 +91,9 @@ fn torso_rigid_bodies(params: &TorsoParams) -> (Box<dyn FnMut()>, usize) {
     for (i, p) in layout.rest.iter().enumerate() {
         let n = layout.normal[i];
         let mut locked = LockedAxes::ROTATION_LOCKED;
-        let dominant = (0..3).max_by(|a, b| n[*a].abs().total_cmp(&n[*b].abs())).unwrap();
+        let dominant = (0..3)
+            .max_by(|a, b| n[*a].abs().total_cmp(&n[*b].abs()))
+            .unwrap();
         for (axis, flag) in [
             LockedAxes::TRANSLATION_LOCKED_X,
             LockedAxes::TRANSLATION_LOCKED_Y,
@@ -104,18 +114,26 @@ fn torso_rigid_bodies(params: &TorsoParams) -> (Box<dyn FnMut()>, usize) {
                 .linear_damping(params.damping as Real),
         );
         colliders.insert_with_parent(
-            ColliderBuilder::ball(0.004).mass(mass[i] as Real).collision_groups(InteractionGroups::new(
-                Group::GROUP_1,
-                Group::GROUP_2,
-                InteractionTestMode::And,
-            )),
+            ColliderBuilder::ball(0.004)
+                .mass(mass[i] as Real)
+                .collision_groups(InteractionGroups::new(
+                    Group::GROUP_1,
+                    Group::GROUP_2,
+                    InteractionTestMode::And,
+                )),
             h,
             &mut bodies,
         );
         handles.push(h);
     }
     let top = params.top_z() as Real;
-    let probe = bodies.insert(RigidBodyBuilder::kinematic_position_based().translation(Vector::new(0.0, -0.08, top + 0.05 - 0.008)));
+    let probe = bodies.insert(
+        RigidBodyBuilder::kinematic_position_based().translation(Vector::new(
+            0.0,
+            -0.08,
+            top + 0.05 - 0.008,
+        )),
+    );
     colliders.insert_with_parent(
         ColliderBuilder::cuboid(0.005, 0.03, 0.05).collision_groups(InteractionGroups::new(
             Group::GROUP_2,
@@ -127,7 +145,10 @@ fn torso_rigid_bodies(params: &TorsoParams) -> (Box<dyn FnMut()>, usize) {
     );
     let n = handles.len();
     let mut state = (
-        IntegrationParameters { dt: 0.002, ..IntegrationParameters::default() },
+        IntegrationParameters {
+            dt: 0.002,
+            ..IntegrationParameters::default()
+        },
         IslandManager::new(),
         BroadPhaseBvh::new(),
         NarrowPhase::new(),
@@ -145,10 +166,14 @@ fn torso_rigid_bodies(params: &TorsoParams) -> (Box<dyn FnMut()>, usize) {
                 let p = bodies[handles[i]].translation();
                 let r = layout.rest[i];
                 let nn = layout.normal[i];
-                (p.x as f64 - r[0]) * nn[0] + (p.y as f64 - r[1]) * nn[1] + (p.z as f64 - r[2]) * nn[2]
+                (p.x as f64 - r[0]) * nn[0]
+                    + (p.y as f64 - r[1]) * nn[1]
+                    + (p.z as f64 - r[2]) * nn[2]
             })
             .collect();
-        let mut f: Vec<f64> = (0..n).map(|i| -mass[i] * params_stiffness(&u, i, &mass, kappa)).collect();
+        let mut f: Vec<f64> = (0..n)
+            .map(|i| -mass[i] * params_stiffness(&u, i, &mass, kappa))
+            .collect();
         for &(i, j, w) in &layout.edges {
             let s = edge_k * w * (u[i] - u[j]);
             f[i] -= s;
@@ -158,13 +183,42 @@ fn torso_rigid_bodies(params: &TorsoParams) -> (Box<dyn FnMut()>, usize) {
             let nn = layout.normal[i];
             let body = &mut bodies[handles[i]];
             body.reset_forces(false);
-            body.add_force(Vector::new((f[i] * nn[0]) as Real, (f[i] * nn[1]) as Real, (f[i] * nn[2]) as Real), true);
+            body.add_force(
+                Vector::new(
+                    (f[i] * nn[0]) as Real,
+                    (f[i] * nn[1]) as Real,
+                    (f[i] * nn[2]) as Real,
+                ),
+                true,
+            );
         }
         let phase = (t * 0.04 / 0.16).fract();
-        let y = if phase < 0.5 { -0.08 + 0.32 * phase } else { 0.24 - 0.32 * phase };
-        bodies[probe].set_next_kinematic_translation(Vector::new(0.0, y as Real, top + 0.05 - 0.008));
+        let y = if phase < 0.5 {
+            -0.08 + 0.32 * phase
+        } else {
+            0.24 - 0.32 * phase
+        };
+        bodies[probe].set_next_kinematic_translation(Vector::new(
+            0.0,
+            y as Real,
+            top + 0.05 - 0.008,
+        ));
         let (ip, islands, bp, np, ij, mj, sb, ccd, pipe) = &mut state;
-        pipe.step(Vector::new(0.0, 0.0, -9.81), ip, islands, bp, np, &mut bodies, &mut colliders, ij, mj, sb, ccd, &(), &());
+        pipe.step(
+            Vector::new(0.0, 0.0, -9.81),
+            ip,
+            islands,
+            bp,
+            np,
+            &mut bodies,
+            &mut colliders,
+            ij,
+            mj,
+            sb,
+            ccd,
+            &(),
+            &(),
+        );
         t += 0.002;
     };
     fn params_stiffness(u: &[f64], i: usize, _mass: &[f64], _kappa: f64) -> f64 {
@@ -175,7 +229,11 @@ fn torso_rigid_bodies(params: &TorsoParams) -> (Box<dyn FnMut()>, usize) {
 
 /// The Panda holding its pose with gravity compensation recomputed every step.
 fn arm_alone() -> Box<dyn FnMut()> {
-    let mut scene = Scene::new(SceneParams { torso: None, ..SceneParams::default() }).unwrap();
+    let mut scene = Scene::new(SceneParams {
+        torso: None,
+        ..SceneParams::default()
+    })
+    .unwrap();
     Box::new(move || {
         let tau = scene.gravity_torques();
         scene.step(&tau);
@@ -187,7 +245,13 @@ fn arm_press_slide() -> (Box<dyn FnMut()>, f64) {
     let mut scene = Scene::new(SceneParams::default()).unwrap();
     let top = scene.torso().unwrap().params().top_z();
     let rot = scene.tip_pose().rotation;
-    let mut osc = Osc::new(OscParams { kp: [300.0, 300.0, 300.0, 300.0, 300.0, 300.0], ..OscParams::default() }, &scene);
+    let mut osc = Osc::new(
+        OscParams {
+            kp: [300.0, 300.0, 300.0, 300.0, 300.0, 300.0],
+            ..OscParams::default()
+        },
+        &scene,
+    );
     osc.set_goal([0.0, -0.08, top + 0.02], rot);
     for _ in 0..1500 {
         let tau = osc.torques(&mut scene);
@@ -202,7 +266,11 @@ fn arm_press_slide() -> (Box<dyn FnMut()>, f64) {
     let mut t = 0.0f64;
     let step = Box::new(move || {
         let phase = (t * 0.04 / 0.32).fract();
-        let y = if phase < 0.5 { -0.08 + 0.32 * phase } else { 0.24 - 0.32 * phase };
+        let y = if phase < 0.5 {
+            -0.08 + 0.32 * phase
+        } else {
+            0.24 - 0.32 * phase
+        };
         osc.set_goal([0.0, y, top - 0.01], rot);
         let tau = osc.torques(&mut scene);
         scene.step(&tau);
@@ -246,7 +314,12 @@ fn export_scene(path: &str, torso: &Torso) {
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let value = |name: &str| args.iter().position(|a| a == name).and_then(|i| args.get(i + 1)).cloned();
+    let value = |name: &str| {
+        args.iter()
+            .position(|a| a == name)
+            .and_then(|i| args.get(i + 1))
+            .cloned()
+    };
     let seconds: f64 = value("--seconds").map_or(2.0, |v| v.parse().unwrap());
     let repeats: usize = value("--repeats").map_or(3, |v| v.parse().unwrap());
     let default = TorsoParams::default();
@@ -255,8 +328,14 @@ fn main() {
         export_scene(&path, &torso);
     }
     let particles = torso.layout().len();
-    let double = TorsoParams { spacing: default.spacing / 2f64.sqrt(), ..default.clone() };
-    let particles_2x = Torso::new(double.clone(), ProbeFace::default()).unwrap().layout().len();
+    let double = TorsoParams {
+        spacing: default.spacing / 2f64.sqrt(),
+        ..default.clone()
+    };
+    let particles_2x = Torso::new(double.clone(), ProbeFace::default())
+        .unwrap()
+        .layout()
+        .len();
 
     let mut out = serde_json::Map::new();
     let (r, runs) = rate(repeats, seconds, || torso_press(default.clone()));
@@ -271,7 +350,10 @@ fn main() {
     });
     out.insert("torso_rigid_bodies".into(), json!({"steps_per_s": r, "runs": runs, "particles": design_b_particles, "bodies": design_b_particles + 1, "dofs": design_b_particles}));
     let (r, runs) = rate(repeats, seconds, arm_alone);
-    out.insert("arm_alone".into(), json!({"steps_per_s": r, "runs": runs, "bodies": 9, "dofs": 7}));
+    out.insert(
+        "arm_alone".into(),
+        json!({"steps_per_s": r, "runs": runs, "bodies": 9, "dofs": 7}),
+    );
     let mut force = 0.0;
     let (r, runs) = rate(repeats, seconds, || {
         let (step, f) = arm_press_slide();

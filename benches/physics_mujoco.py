@@ -268,7 +268,7 @@ def model_xml(scene, args, torso, arm):
         a, acts = arm_xml(scene, args)
         body.append(a)
     return f"""<mujoco model="echogym_bench">
- <compiler angle="radian" autolimits="true"/>
+ <compiler angle="radian" autolimits="true" balanceinertia="true"/>
  <option timestep="{dt:.9g}" gravity="{f(g)}" integrator="implicitfast" solver="{args.solver}"/>
  <size memory="{args.memory}"/>
  <worldbody>

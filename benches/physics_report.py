@@ -38,7 +38,7 @@ def main(rust_path: str, mujoco_path: str) -> None:
         "",
         "Physics steps/s on one core, 2 ms steps, median of the runs. echogym: rapier3d 0.36 "
         f"+ echogym's particle torso; MuJoCo {peer.get('mujoco_version', 'n/a')} "
-        f"(flexcomp torso, support: {peer.get('torso_support', 'n/a')}) measured in the same run.",
+        f"(flexcomp torso, support: {peer.get('config', {}).get('torso_support', 'n/a')}) measured in the same run.",
         "",
         "| scene | echogym | counts | MuJoCo | counts |",
         "|---|---:|---|---:|---|",

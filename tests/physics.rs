@@ -315,3 +315,102 @@ fn identical_inputs_give_bitwise_identical_trajectories_and_snapshots_restore() 
             .all(|(x, y)| x.to_bits() == y.to_bits())
     );
 }
+
+#[test]
+fn torso_is_visible_to_ray_casts_and_follows_the_skin() {
+    let mut scene = Scene::new(SceneParams {
+        torso_collider_sync: true,
+        ..SceneParams::default()
+    })
+    .unwrap();
+    let tau = scene.gravity_torques();
+    scene.step(&tau);
+    let top = scene.torso().unwrap().params().top_z();
+    let torso = scene.torso_collider().unwrap();
+    let (hit, distance) = scene
+        .world()
+        .cast_ray([0.05, 0.1, 1.2], [0.0, 0.0, -1.0], 1.0)
+        .unwrap();
+    assert_eq!(hit, torso);
+    assert!(
+        (1.2 - distance - top).abs() < 1e-4,
+        "hit at z = {}",
+        1.2 - distance
+    );
+    // Press the skin with a kinematic probe: the ray now ends lower.
+    for _ in 0..500 {
+        let probe = kinematic_probe(0.05, 0.1, top - 0.01, 0.0);
+        scene.torso_mut().unwrap().step(0.002, Some(&probe));
+    }
+    let skin = scene.torso().unwrap().skin_z(0.05, 0.1).unwrap();
+    assert!(skin < top - 0.008, "skin at {skin}");
+    let tau = scene.gravity_torques();
+    scene.step(&tau); // syncs the collider; rapier refits its tree
+    let (hit, distance) = scene
+        .world()
+        .cast_ray([0.05, 0.1, 1.2], [0.0, 0.0, -1.0], 1.0)
+        .unwrap();
+    assert_eq!(hit, torso);
+    let z = 1.2 - distance;
+    assert!(
+        z < top - 0.007 && z > skin - 0.002,
+        "ray hit at z = {z}, skin at {skin}"
+    );
+}
+
+#[test]
+fn hybrid_controller_holds_5_n_while_sliding() {
+    use echogym::sim::controller::HybridForceMotion;
+    let mut scene = approach(RobotKind::Panda);
+    let mut hybrid = HybridForceMotion::new(OscParams::default(), &scene, 5.0);
+    let rot = scene.tip_pose().rotation;
+    let mut forces = Vec::new();
+    for step in 0..2500 {
+        // Settle for 1 s, then slide 4 cm along y at 4 cm/s.
+        let y = if step < 500 {
+            0.0
+        } else {
+            0.04 * ((step - 500) as f64 * 0.002).min(1.0)
+        };
+        let top = scene.torso().unwrap().params().top_z();
+        hybrid.motion.set_goal([0.0, y, top], rot);
+        let tau = hybrid.torques(&mut scene);
+        scene.step(&tau);
+        if step >= 750 {
+            forces.push(HybridForceMotion::measured_force(&scene));
+        }
+    }
+    let mean = forces.iter().sum::<f64>() / forces.len() as f64;
+    let worst = forces.iter().map(|f| (f - 5.0).abs()).fold(0.0, f64::max);
+    assert!((mean - 5.0).abs() < 0.1, "mean force {mean} N");
+    assert!(worst < 1.0, "force left 5 ± 1 N: worst error {worst} N");
+    let y = scene.tip_pose().translation.y as f64;
+    assert!((y - 0.04).abs() < 0.005, "slid to y = {y}");
+}
+
+#[test]
+fn joint_controllers_track_their_goals() {
+    use echogym::sim::controller::{JointPosition, JointVelocity};
+    let mut scene = scene(RobotKind::Ur5e, false);
+    let mut position = JointPosition::new(&scene);
+    position.goal[0] += 0.2;
+    for _ in 0..1000 {
+        let tau = position.torques(&mut scene);
+        scene.step(&tau);
+    }
+    let q = scene.arm().q(scene.world());
+    assert!(
+        (q[0] - position.goal[0]).abs() < 2e-3,
+        "q0 = {}, goal {}",
+        q[0],
+        position.goal[0]
+    );
+    let mut velocity = JointVelocity::new(&scene);
+    velocity.goal[1] = 0.3;
+    for _ in 0..250 {
+        let tau = velocity.torques(&mut scene);
+        scene.step(&tau);
+    }
+    let qd = scene.arm().qd(scene.world());
+    assert!((qd[1] - 0.3).abs() < 0.01, "qd1 = {}", qd[1]);
+}

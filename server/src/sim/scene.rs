@@ -58,6 +58,10 @@ pub struct SceneParams {
     pub ft_sensor: FtSensorParams,
     /// Seed of the sensor noise.
     pub seed: u64,
+    /// Keep the torso's rapier collider on the deforming skin every step (for cameras
+    /// and ray casts; ≈ 25 µs a step). Default false: the collider shows the rest shape
+    /// unless [`Scene::sync_torso_collider`] is called.
+    pub torso_collider_sync: bool,
 }
 
 impl Default for SceneParams {
@@ -72,6 +76,7 @@ impl Default for SceneParams {
             torso: Some(TorsoParams::default()),
             ft_sensor: FtSensorParams::default(),
             seed: 0,
+            torso_collider_sync: false,
         }
     }
 }
@@ -101,6 +106,7 @@ pub struct Scene {
     arm: Arm,
     probe: ColliderHandle,
     torso: Option<Torso>,
+    torso_collider: Option<ColliderHandle>,
     sensor: FtSensor,
     torso_wrench: ContactWrench,
     ideal: [f64; 6],
@@ -167,6 +173,10 @@ impl Scene {
             Some(t) => Some(Torso::new(t.clone(), params.probe.face)?),
             None => None,
         };
+        let torso_collider = match &torso {
+            Some(t) => Some(torso_collider(&mut world, t)?),
+            None => None,
+        };
         let sensor = FtSensor::new(params.ft_sensor.clone(), params.seed);
         let mut scene = Self {
             params,
@@ -174,6 +184,7 @@ impl Scene {
             arm,
             probe,
             torso,
+            torso_collider,
             sensor,
             torso_wrench: ContactWrench::default(),
             ideal: [0.0; 6],
@@ -271,6 +282,9 @@ impl Scene {
             Some(torso) => torso.step(dt, Some(&probe)),
             None => ContactWrench::default(),
         };
+        if self.params.torso_collider_sync {
+            self.sync_torso_collider();
+        }
         self.arm.reset_forces(&mut self.world);
         self.arm.apply_torques(&mut self.world, tau);
         let last = &mut self.world.sets.bodies[self.arm.last_link()];
@@ -311,6 +325,26 @@ impl Scene {
         self.in_contact = w.in_contact() || rigid_f.iter().any(|v| v.abs() > 1e-9);
     }
 
+    /// Move the torso's rapier collider (ray casts, cameras) to the current skin; with
+    /// `torso_collider_sync` this happens every step before rapier's (≈ 25 µs).
+    pub fn sync_torso_collider(&mut self) {
+        let (Some(torso), Some(handle)) = (&self.torso, self.torso_collider) else {
+            return;
+        };
+        let vertices: Vec<Vector> = torso.surface_vertices().into_iter().map(vec3).collect();
+        if let Some(mesh) = self.world.sets.colliders[handle]
+            .shape_mut()
+            .as_trimesh_mut()
+        {
+            mesh.set_vertices(&vertices);
+        }
+    }
+
+    /// The torso's rapier collider, if any.
+    pub fn torso_collider(&self) -> Option<ColliderHandle> {
+        self.torso_collider
+    }
+
     /// The force-torque sensor's reading `[fx, fy, fz, tx, ty, tz]` in the sensor frame
     /// [N, N·m], after the last step.
     pub fn ft_reading(&self) -> [f64; 6] {
@@ -336,7 +370,11 @@ impl Scene {
     /// Torques that hold the arm and probe against gravity [N·m].
     pub fn gravity_torques(&mut self) -> Vec<f64> {
         self.arm.update_kinematics(&mut self.world);
-        self.arm.gravity_torques(&self.world).iter().copied().collect()
+        self.arm
+            .gravity_torques(&self.world)
+            .iter()
+            .copied()
+            .collect()
     }
 
     /// The arm and the world, with the arm's kinematics updated (for controllers).
@@ -344,6 +382,26 @@ impl Scene {
         self.arm.update_kinematics(&mut self.world);
         (&self.arm, &self.world)
     }
+}
+
+/// The torso's skin as a deformable trimesh on a fixed body, visible to ray casts only
+/// (its contacts are the torso's own).
+fn torso_collider(world: &mut World, torso: &Torso) -> Result<ColliderHandle, SceneError> {
+    let vertices: Vec<Vector> = torso.surface_vertices().into_iter().map(vec3).collect();
+    let builder = ColliderBuilder::trimesh_with_flags(
+        vertices,
+        torso.surface_triangles(),
+        TriMeshFlags::DEFORMABLE,
+    )
+    .map_err(|e| SceneError::Invalid(format!("torso mesh: {e:?}")))?
+    .collision_groups(InteractionGroups::new(
+        groups::TORSO,
+        Group::NONE,
+        InteractionTestMode::And,
+    ));
+    let s = &mut world.sets;
+    let body = s.bodies.insert(RigidBodyBuilder::fixed());
+    Ok(s.colliders.insert_with_parent(builder, body, &mut s.bodies))
 }
 
 fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {

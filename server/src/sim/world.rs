@@ -225,6 +225,31 @@ impl World {
         self.table
     }
 
+    /// First collider hit by the ray from `origin` along `direction` (unit) within
+    /// `max_distance`, with the hit distance [m]. Sees every collider, including the
+    /// torso's skin (as of the last step).
+    pub fn cast_ray(
+        &self,
+        origin: [f64; 3],
+        direction: [f64; 3],
+        max_distance: f64,
+    ) -> Option<(ColliderHandle, f64)> {
+        let s = &self.sets;
+        let pipeline = s.broad_phase.as_query_pipeline(
+            s.narrow_phase.query_dispatcher(),
+            &s.bodies,
+            &s.colliders,
+            QueryFilter::default(),
+        );
+        pipeline
+            .cast_ray(
+                &Ray::new(vec3(origin), vec3(direction)),
+                max_distance as Real,
+                true,
+            )
+            .map(|(h, toi)| (h, toi as f64))
+    }
+
     /// Total normal contact force [N] and its torque about `about` [N·m] that the other
     /// colliders exert on `collider` during the last step, summed from the solver
     /// manifolds' impulses (rapier's contact-force events carry no torque). Friction

@@ -1,6 +1,11 @@
-//! Controllers turning actions into joint torques (robosuite's set and the seed thesis's
-//! hybrid force/motion controller).
+//! Controllers turning actions into joint torques: robosuite's set (OSC_POSE, joint
+//! position, joint velocity; joint torque is `Scene::step` itself) and the seed thesis's
+//! hybrid force/motion controller.
 
+mod hybrid;
+mod joint;
 mod osc;
 
+pub use hybrid::{ForceGains, HybridForceMotion};
+pub use joint::{JointPosition, JointVelocity};
 pub use osc::{Osc, OscParams};

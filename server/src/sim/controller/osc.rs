@@ -84,8 +84,8 @@ impl Osc {
         self.goal_rotation = (rot * tip.rotation).normalize();
     }
 
-    /// Joint torques for the current state [N·m].
-    pub fn torques(&self, scene: &mut Scene) -> Vec<f64> {
+    /// The pieces of the law at the current state.
+    fn terms(&self, scene: &mut Scene) -> Terms {
         let tip = scene.tip_pose();
         let tip_p = arr3(tip.translation);
         let (arm, world) = scene.arm_kinematics();
@@ -95,14 +95,11 @@ impl Osc {
         let q = DVector::from_vec(arm.q(world));
         let qd = DVector::from_vec(arm.qd(world));
         let n = q.len();
-
         let m_inv = m
             .clone()
             .try_inverse()
             .unwrap_or_else(|| DMatrix::identity(n, n));
-        let lambda_inv = &j * &m_inv * j.transpose();
-        let lambda = pseudo_inverse(&lambda_inv);
-
+        let lambda = pseudo_inverse(&(&j * &m_inv * j.transpose()));
         let mut e = DVector::zeros(6);
         for k in 0..3 {
             e[k] = self.goal_position[k] - tip_p[k];
@@ -112,15 +109,48 @@ impl Osc {
         e[4] = rot_err.y as f64;
         e[5] = rot_err.z as f64;
         let v = &j * &qd;
-        let mut desired = DVector::zeros(6);
-        for k in 0..6 {
-            let kp = self.params.kp[k];
-            let kd = 2.0 * self.params.damping_ratio[k] * kp.sqrt();
-            desired[k] = kp * e[k] - kd * v[k];
+        let task = DVector::from_iterator(
+            6,
+            (0..6).map(|k| {
+                let kp = self.params.kp[k];
+                let kd = 2.0 * self.params.damping_ratio[k] * kp.sqrt();
+                kp * e[k] - kd * v[k]
+            }),
+        );
+        Terms {
+            j,
+            m,
+            m_inv,
+            lambda,
+            g,
+            q,
+            qd,
+            task,
         }
-        let force = &lambda * desired;
-        let mut tau = j.transpose() * force;
+    }
 
+    /// Desired task acceleration `Kp·e - Kd·ẋ`, task inertia Λ, tip Jacobian and gravity
+    /// torques (for controllers that reuse the OSC's motion law).
+    pub(crate) fn task_terms(&self, scene: &mut Scene) -> super::hybrid::TaskTerms {
+        let t = self.terms(scene);
+        (t.task, t.lambda, t.j, t.g)
+    }
+
+    /// Joint torques for the current state [N·m].
+    pub fn torques(&self, scene: &mut Scene) -> Vec<f64> {
+        let Terms {
+            j,
+            m,
+            m_inv,
+            lambda,
+            g,
+            q,
+            qd,
+            task,
+        } = self.terms(scene);
+        let n = q.len();
+        let force = &lambda * task;
+        let mut tau = j.transpose() * force;
         let j_bar = &m_inv * j.transpose() * &lambda;
         let null = DMatrix::identity(n, n) - j.transpose() * j_bar.transpose();
         let kd_null = 2.0 * self.params.null_kp.sqrt();
@@ -128,7 +158,7 @@ impl Osc {
         let posture = (&home - &q) * self.params.null_kp - &qd * kd_null;
         tau += null * (&m * posture);
         if self.params.friction_compensation {
-            for (t, joint) in tau.iter_mut().zip(&arm.model().joints) {
+            for (t, joint) in tau.iter_mut().zip(&scene.arm().model().joints) {
                 if joint.friction > 0.0 {
                     *t += joint.friction * (*t / (0.05 * joint.friction)).tanh();
                 }
@@ -137,6 +167,18 @@ impl Osc {
         tau += g;
         tau.iter().copied().collect()
     }
+}
+
+/// The OSC law's pieces at one state.
+struct Terms {
+    j: DMatrix<f64>,
+    m: DMatrix<f64>,
+    m_inv: DMatrix<f64>,
+    lambda: DMatrix<f64>,
+    g: DVector<f64>,
+    q: DVector<f64>,
+    qd: DVector<f64>,
+    task: DVector<f64>,
 }
 
 /// Moore–Penrose pseudo-inverse with small singular values cut (near singularities).

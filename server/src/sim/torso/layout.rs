@@ -30,6 +30,11 @@ pub struct ShellLayout {
     /// Per particle: weight of a link to the fixed bottom (side particles of the lowest
     /// ring), else 0.
     pub ground: Vec<f64>,
+    /// The top grid's boundary `(i, j)`, counter-clockwise; ring particle `k` of ring `r`
+    /// is `top_len + r·boundary.len() + k` and stands below boundary point `k`.
+    pub boundary: Vec<(usize, usize)>,
+    /// World z of the fixed bottom edge [m].
+    pub bottom_z: f64,
 }
 
 impl ShellLayout {
@@ -152,6 +157,8 @@ impl ShellLayout {
             area,
             edges,
             ground,
+            boundary,
+            bottom_z,
         }
     }
 

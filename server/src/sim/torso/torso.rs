@@ -159,6 +159,75 @@ impl Torso {
             .then(|| self.params.top_z() + self.skin.displacement(&self.u, x, y))
     }
 
+    /// The torso's surface as a triangle mesh for rendering and ray casts: top-grid
+    /// vertices on the smooth skin, side vertices at the particles, plus the fixed bottom
+    /// edge. The topology never changes; [`Torso::surface_vertices`] gives new positions.
+    pub fn surface_triangles(&self) -> Vec<[u32; 3]> {
+        let l = &self.layout;
+        let (nx, ny) = (l.nx, l.ny);
+        let mut tris = Vec::new();
+        for j in 0..ny - 1 {
+            for i in 0..nx - 1 {
+                let a = (j * nx + i) as u32;
+                let b = a + 1;
+                let c = a + nx as u32;
+                let d = c + 1;
+                tris.push([a, b, d]);
+                tris.push([a, d, c]);
+            }
+        }
+        let count = l.boundary.len();
+        let bottom = l.len();
+        // Rows of the side bands, from the bottom edge up to the top grid's boundary.
+        let mut rows: Vec<Vec<u32>> = vec![(0..count).map(|k| (bottom + k) as u32).collect()];
+        for r in 0..l.rings {
+            rows.push(
+                (0..count)
+                    .map(|k| (l.top_len() + r * count + k) as u32)
+                    .collect(),
+            );
+        }
+        rows.push(
+            l.boundary
+                .iter()
+                .map(|&(i, j)| (j * nx + i) as u32)
+                .collect(),
+        );
+        for pair in rows.windows(2) {
+            let (lower, upper) = (&pair[0], &pair[1]);
+            for k in 0..count {
+                let k1 = (k + 1) % count;
+                tris.push([lower[k], lower[k1], upper[k1]]);
+                tris.push([lower[k], upper[k1], upper[k]]);
+            }
+        }
+        tris
+    }
+
+    /// Current vertex positions of [`Torso::surface_triangles`] [m, world].
+    pub fn surface_vertices(&self) -> Vec<[f64; 3]> {
+        let l = &self.layout;
+        let mut out = Vec::with_capacity(l.len() + l.boundary.len());
+        let top = self.params.top_z();
+        for i in 0..l.len() {
+            if i < l.top_len() {
+                let p = l.rest[i];
+                out.push([
+                    p[0],
+                    p[1],
+                    top + self.skin.displacement(&self.u, p[0], p[1]),
+                ]);
+            } else {
+                out.push(self.position(i));
+            }
+        }
+        for &(i, j) in &l.boundary {
+            let p = l.rest[j * l.nx + i];
+            out.push([p[0], p[1], l.bottom_z]);
+        }
+        out
+    }
+
     /// Change of enclosed volume [m³] (first order in the displacements).
     pub fn volume_change(&self) -> f64 {
         self.layout
