@@ -414,3 +414,38 @@ fn joint_controllers_track_their_goals() {
     let qd = scene.arm().qd(scene.world());
     assert!((qd[1] - 0.3).abs() < 0.01, "qd1 = {}", qd[1]);
 }
+
+#[test]
+fn urdf_arms_load_merge_fixed_joints_and_hold_still() {
+    use echogym::sim::robot::load_urdf;
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/three_link_arm.urdf");
+    let model = load_urdf(&path).unwrap();
+    assert_eq!(model.dof(), 3);
+    // The fixed base mount folds into the first joint's origin, the housing's 0.5 kg into
+    // link2, the trailing tool0 becomes the flange.
+    assert!((model.joints[0].origin_xyz[2] - 0.15).abs() < 1e-12);
+    assert!((model.joints[1].link.mass - 1.7).abs() < 1e-12);
+    assert!((model.flange_xyz[0] - 0.2).abs() < 1e-12);
+    assert_eq!(model.home, vec![0.0, 0.0, 1.35]);
+    assert_eq!(model.joints[1].link.capsules.len(), 2);
+
+    let mut scene = Scene::new(SceneParams {
+        robot_urdf: Some(path),
+        torso: None,
+        ..SceneParams::default()
+    })
+    .unwrap();
+    let q0 = scene.arm().q(scene.world());
+    for _ in 0..1000 {
+        let tau = scene.gravity_torques();
+        scene.step(&tau);
+    }
+    let drift = max_abs_diff(&scene.arm().q(scene.world()), &q0);
+    assert!(drift < 1e-3, "URDF arm drifted {drift} rad");
+    let bad = Scene::new(SceneParams {
+        robot_urdf: Some("/nonexistent.urdf".into()),
+        ..SceneParams::default()
+    });
+    assert!(bad.unwrap_err().to_string().contains("/nonexistent.urdf"));
+}

@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 
 use super::ft_sensor::{FtSensor, FtSensorParams};
 use super::probe::{ProbeParamError, ProbeParams};
-use super::robot::{Arm, ArmError, RobotModel, panda, ur5e};
+use super::robot::{Arm, ArmError, RobotModel, UrdfError, load_urdf, panda, ur5e};
 use super::torso::{ContactWrench, ProbeKinematics, Torso, TorsoParamError, TorsoParams};
 use super::world::{World, WorldParams, arr3, groups, vec3};
 
@@ -43,6 +43,9 @@ pub struct SceneParams {
     pub world: WorldParams,
     /// The arm. Default Panda.
     pub robot: RobotKind,
+    /// Load the arm from this URDF instead of `robot` (serial chains; see
+    /// [`super::robot::load_urdf`]).
+    pub robot_urdf: Option<std::path::PathBuf>,
     /// World position of the robot base [m]. Default (-0.5, 0, 0.8): on the table,
     /// half a metre from the torso's centre, within both arms' reach.
     pub robot_base: [f64; 3],
@@ -69,6 +72,7 @@ impl Default for SceneParams {
         Self {
             world: WorldParams::default(),
             robot: RobotKind::Panda,
+            robot_urdf: None,
             robot_base: [-0.5, 0.0, 0.8],
             robot_base_yaw: 0.0,
             initial_q: None,
@@ -93,6 +97,9 @@ pub enum SceneError {
     /// The probe.
     #[error(transparent)]
     Probe(#[from] ProbeParamError),
+    /// The URDF.
+    #[error(transparent)]
+    Urdf(#[from] UrdfError),
     /// Inconsistent values.
     #[error("invalid scene: {0}")]
     Invalid(String),
@@ -136,7 +143,10 @@ impl Scene {
             )));
         }
         let mut world = World::new(&params.world);
-        let model = params.robot.model();
+        let model = match &params.robot_urdf {
+            Some(path) => load_urdf(path)?,
+            None => params.robot.model(),
+        };
         let base = Pose::from_parts(
             vec3(params.robot_base),
             Rotation::from_rotation_z(params.robot_base_yaw as Real),
