@@ -4,7 +4,9 @@
 //! to the torso's documented static stiffness; the probe does not feel the particle grid
 //! (force ripple while sliding, uniform stiffness over the top); the OSC controller reaches
 //! a 5 cm target within 1 s without overshoot; identical inputs give bitwise-identical
-//! trajectories and snapshot → restore → step equals the uninterrupted run.
+//! trajectories and snapshot → restore → step equals the uninterrupted run; the hybrid,
+//! joint and action-level controllers track their goals; URDF arms load and hold still; the
+//! torso is visible to ray casts.
 //! (Energy decay of the passive torso and stability at 5× stiffness / 50 N are checked in
 //! the torso's unit tests.)
 
@@ -448,4 +450,63 @@ fn urdf_arms_load_merge_fixed_joints_and_hold_still() {
         ..SceneParams::default()
     });
     assert!(bad.unwrap_err().to_string().contains("/nonexistent.urdf"));
+}
+
+#[test]
+fn actions_are_scaled_by_the_seeds_limits_at_the_control_frequency() {
+    use echogym::sim::controller::{
+        ArmController, ControllerConfig, ControllerKind, ImpedanceMode,
+    };
+    let config = ControllerConfig::default();
+    assert_eq!(config.physics_steps_per_action(0.002), 25);
+    assert_eq!(config.action_size(7), 6);
+    let variable = ControllerConfig {
+        impedance_mode: ImpedanceMode::Variable,
+        ..ControllerConfig::default()
+    };
+    assert_eq!(variable.action_size(7), 18);
+    assert_eq!(
+        ControllerConfig {
+            kind: ControllerKind::JointTorque,
+            ..config.clone()
+        }
+        .action_size(6),
+        6
+    );
+
+    let mut scene = scene(RobotKind::Panda, false);
+    let start = scene.tip_pose().translation;
+    let mut controller = ArmController::new(config, &scene);
+    // Full-scale +x actions (clipped from 3.0) for 1 s: each moves the goal 5 cm.
+    for _ in 0..20 {
+        controller.act(&mut scene, &[3.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    }
+    let moved = (scene.tip_pose().translation.x - start.x) as f64;
+    assert!(moved > 0.2 && moved < 1.0, "moved {moved} m in 20 actions");
+    assert!((scene.time() - 1.0).abs() < 1e-9);
+
+    for kind in [
+        ControllerKind::JointPosition,
+        ControllerKind::JointVelocity,
+        ControllerKind::JointTorque,
+    ] {
+        let mut scene = scene(RobotKind::Ur5e, false);
+        let cfg = ControllerConfig {
+            kind,
+            ..ControllerConfig::default()
+        };
+        let mut controller = ArmController::new(cfg.clone(), &scene);
+        let q0 = scene.arm().q(scene.world());
+        let mut action = vec![0.0; cfg.action_size(scene.arm().dof())];
+        action[0] = 0.5;
+        for _ in 0..4 {
+            controller.act(&mut scene, &action);
+        }
+        let q = scene.arm().q(scene.world());
+        assert!(
+            q[0] - q0[0] > 0.01,
+            "{kind:?}: joint 0 moved {}",
+            q[0] - q0[0]
+        );
+    }
 }

@@ -105,7 +105,8 @@ pub struct World {
     pub sets: RapierSets,
     pipeline: PhysicsPipeline,
     gravity: Vector,
-    time: f64,
+    dt: f64,
+    steps: u64,
     table: ColliderHandle,
 }
 
@@ -116,7 +117,8 @@ impl Clone for World {
             sets: self.sets.clone(),
             pipeline: PhysicsPipeline::new(),
             gravity: self.gravity,
-            time: self.time,
+            dt: self.dt,
+            steps: self.steps,
             table: self.table,
         }
     }
@@ -179,7 +181,8 @@ impl World {
             sets,
             pipeline: PhysicsPipeline::new(),
             gravity: vec3(params.gravity),
-            time: 0.0,
+            dt: params.dt,
+            steps: 0,
             table,
         }
     }
@@ -202,12 +205,12 @@ impl World {
             &(),
             &(),
         );
-        self.time += s.params.dt as f64;
+        self.steps += 1;
     }
 
-    /// Timestep [s].
+    /// Timestep [s] (as configured; rapier integrates with its f32 rounding).
     pub fn dt(&self) -> f64 {
-        self.sets.params.dt as f64
+        self.dt
     }
 
     /// Gravity [m/s²].
@@ -215,9 +218,9 @@ impl World {
         arr3(self.gravity)
     }
 
-    /// Simulated time [s].
+    /// Simulated time [s]: steps taken × dt.
     pub fn time(&self) -> f64 {
-        self.time
+        self.steps as f64 * self.dt
     }
 
     /// The table's collider.
