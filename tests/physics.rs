@@ -490,19 +490,19 @@ fn actions_are_scaled_by_the_seeds_limits_at_the_control_frequency() {
         ControllerKind::JointVelocity,
         ControllerKind::JointTorque,
     ] {
-        let mut scene = scene(RobotKind::Ur5e, false);
+        let mut ur5e = scene(RobotKind::Ur5e, false);
         let cfg = ControllerConfig {
             kind,
             ..ControllerConfig::default()
         };
-        let mut controller = ArmController::new(cfg.clone(), &scene);
-        let q0 = scene.arm().q(scene.world());
-        let mut action = vec![0.0; cfg.action_size(scene.arm().dof())];
+        let mut controller = ArmController::new(cfg.clone(), &ur5e);
+        let q0 = ur5e.arm().q(ur5e.world());
+        let mut action = vec![0.0; cfg.action_size(ur5e.arm().dof())];
         action[0] = 0.5;
         for _ in 0..4 {
-            controller.act(&mut scene, &action);
+            controller.act(&mut ur5e, &action);
         }
-        let q = scene.arm().q(scene.world());
+        let q = ur5e.arm().q(ur5e.world());
         assert!(
             q[0] - q0[0] > 0.01,
             "{kind:?}: joint 0 moved {}",
