@@ -474,16 +474,16 @@ fn actions_are_scaled_by_the_seeds_limits_at_the_control_frequency() {
         6
     );
 
-    let mut scene = scene(RobotKind::Panda, false);
-    let start = scene.tip_pose().translation;
-    let mut controller = ArmController::new(config, &scene);
+    let mut panda = scene(RobotKind::Panda, false);
+    let start = panda.tip_pose().translation;
+    let mut controller = ArmController::new(config, &panda);
     // Full-scale +x actions (clipped from 3.0) for 1 s: each moves the goal 5 cm.
     for _ in 0..20 {
-        controller.act(&mut scene, &[3.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        controller.act(&mut panda, &[3.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
     }
-    let moved = (scene.tip_pose().translation.x - start.x) as f64;
+    let moved = (panda.tip_pose().translation.x - start.x) as f64;
     assert!(moved > 0.2 && moved < 1.0, "moved {moved} m in 20 actions");
-    assert!((scene.time() - 1.0).abs() < 1e-9);
+    assert!((panda.time() - 1.0).abs() < 1e-9);
 
     for kind in [
         ControllerKind::JointPosition,
