@@ -52,13 +52,7 @@ fn rate(
 }
 
 fn probe_at(x: f64, y: f64, z: f64, vy: f64) -> ProbeKinematics {
-    ProbeKinematics {
-        tip: [x, y, z],
-        axes: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]],
-        com: [x, y, z + 0.1],
-        linear_velocity: [0.0, vy, 0.0],
-        angular_velocity: [0.0; 3],
-    }
+    ProbeKinematics::upright([x, y, z], [0.0, vy, 0.0])
 }
 
 /// The torso under a probe pressing 8 mm and sliding ±8 cm along y at 4 cm/s.

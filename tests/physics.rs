@@ -170,13 +170,7 @@ fn sensor_reads_the_commanded_contact_force_and_press_slope_matches_stiffness() 
 }
 
 fn kinematic_probe(x: f64, y: f64, z: f64, vy: f64) -> ProbeKinematics {
-    ProbeKinematics {
-        tip: [x, y, z],
-        axes: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]],
-        com: [x, y, z + 0.1],
-        linear_velocity: [0.0, vy, 0.0],
-        angular_velocity: [0.0; 3],
-    }
+    ProbeKinematics::upright([x, y, z], [0.0, vy, 0.0])
 }
 
 #[test]

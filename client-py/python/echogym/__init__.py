@@ -16,22 +16,8 @@ import gymnasium
 
 from echogym._native import PROTOCOL_VERSION, __version__, registered_envs
 from echogym.client import Client, connect
-from echogym.errors import (
-    CapacityError,
-    ControlTimeoutError,
-    EchogymError,
-    EnvClosedError,
-    EnvFailureError,
-    InvalidActionError,
-    InvalidConfigError,
-    LeaseLostError,
-    NeedsResetError,
-    ServerNotRunningError,
-    ServerStoppedError,
-    TransportError,
-    UnknownEnvError,
-    VersionMismatchError,
-)
+from echogym import errors
+from echogym.errors import *  # noqa: F403 (the exception tree, listed in errors.__all__)
 from echogym.gym_env import EchoEnv
 from echogym.gym_vector import EchoVectorEnv
 
@@ -52,24 +38,11 @@ _register_all()
 
 __all__ = [
     "PROTOCOL_VERSION",
-    "CapacityError",
     "Client",
-    "ControlTimeoutError",
     "EchoEnv",
     "EchoVectorEnv",
-    "EchogymError",
-    "EnvClosedError",
-    "EnvFailureError",
-    "InvalidActionError",
-    "InvalidConfigError",
-    "LeaseLostError",
-    "NeedsResetError",
-    "ServerNotRunningError",
-    "ServerStoppedError",
-    "TransportError",
-    "UnknownEnvError",
-    "VersionMismatchError",
     "__version__",
     "connect",
     "registered_envs",
+    *errors.__all__,
 ]

@@ -11,7 +11,9 @@ use serde::{Deserialize, Serialize};
 use super::ft_sensor::{FtSensor, FtSensorParams};
 use super::probe::{ProbeParamError, ProbeParams};
 use super::robot::{Arm, ArmError, RobotModel, UrdfError, load_urdf, panda, ur5e};
-use super::torso::{ContactWrench, ProbeKinematics, Torso, TorsoParamError, TorsoParams};
+use super::torso::{
+    ContactWrench, ProbeKinematics, Torso, TorsoParamError, TorsoParams, add, cross, scale, sub,
+};
 use super::world::{World, WorldParams, arr3, groups, vec3};
 
 /// Which arm.
@@ -412,24 +414,4 @@ fn torso_collider(world: &mut World, torso: &Torso) -> Result<ColliderHandle, Sc
     let s = &mut world.sets;
     let body = s.bodies.insert(RigidBodyBuilder::fixed());
     Ok(s.colliders.insert_with_parent(builder, body, &mut s.bodies))
-}
-
-fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
 }

@@ -115,6 +115,18 @@ pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 }
 
 impl ProbeKinematics {
+    /// A probe pointing straight down (face parallel to the table, array along world y)
+    /// with its tip at `tip`, moving with `velocity`; centre of mass 0.1 m above the tip.
+    pub fn upright(tip: [f64; 3], velocity: [f64; 3]) -> Self {
+        Self {
+            tip,
+            axes: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]],
+            com: [tip[0], tip[1], tip[2] + 0.1],
+            linear_velocity: velocity,
+            angular_velocity: [0.0; 3],
+        }
+    }
+
     /// World position of the face point at offset `(a, b)` in the probe frame.
     pub fn face_point(&self, offset: [f64; 2]) -> [f64; 3] {
         add(

@@ -22,6 +22,7 @@ mod solver;
 mod torso;
 
 pub use contact::{ContactWrench, ProbeFace, ProbeKinematics};
+pub(crate) use contact::{add, cross, scale, sub};
 pub use law::{LawContext, LawTerms, LinearSpringDamper, ParticleLaw};
 pub use layout::ShellLayout;
 pub use params::{TorsoParamError, TorsoParams};

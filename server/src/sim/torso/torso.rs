@@ -554,13 +554,7 @@ mod tests {
     use super::*;
 
     fn level_probe(x: f64, y: f64, z: f64, vz: f64) -> ProbeKinematics {
-        ProbeKinematics {
-            tip: [x, y, z],
-            axes: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]],
-            com: [x, y, z + 0.1],
-            linear_velocity: [0.0, 0.0, vz],
-            angular_velocity: [0.0; 3],
-        }
+        ProbeKinematics::upright([x, y, z], [0.0, 0.0, vz])
     }
 
     #[test]
