@@ -124,16 +124,6 @@ pub struct Scene {
     in_contact: bool,
 }
 
-impl std::fmt::Debug for World {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("World")
-            .field("time", &self.time())
-            .field("bodies", &self.sets.bodies.len())
-            .field("colliders", &self.sets.colliders.len())
-            .finish()
-    }
-}
-
 impl Scene {
     /// Build the scene.
     pub fn new(params: SceneParams) -> Result<Self, SceneError> {

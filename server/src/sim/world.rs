@@ -124,6 +124,16 @@ impl Clone for World {
     }
 }
 
+impl std::fmt::Debug for World {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("World")
+            .field("time", &self.time())
+            .field("bodies", &self.sets.bodies.len())
+            .field("colliders", &self.sets.colliders.len())
+            .finish()
+    }
+}
+
 /// Convert an `[f64; 3]` to rapier's vector.
 pub fn vec3(v: [f64; 3]) -> Vector {
     Vector::new(v[0] as Real, v[1] as Real, v[2] as Real)
