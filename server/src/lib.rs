@@ -11,6 +11,7 @@ pub mod config;
 pub mod daemon;
 pub mod envs;
 pub mod pool;
+pub mod recordings;
 pub mod sim;
 mod spin;
 pub mod testing;
