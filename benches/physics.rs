@@ -77,8 +77,8 @@ fn torso_rigid_bodies(params: &TorsoParams) -> (Box<dyn FnMut()>, usize) {
     let torso = Torso::new(params.clone(), ProbeFace::default()).unwrap();
     let layout = torso.layout().clone();
     let mass = torso.masses().to_vec();
-    let kappa = params.winkler_modulus();
-    let edge_k = kappa * params.smoothing_length.powi(2);
+    let stiffness = params.stiffness;
+    let edge_k = params.winkler_modulus() * params.smoothing_length.powi(2);
     let mut bodies = RigidBodySet::new();
     let mut colliders = ColliderSet::new();
     let mut handles = Vec::new();
@@ -165,9 +165,7 @@ fn torso_rigid_bodies(params: &TorsoParams) -> (Box<dyn FnMut()>, usize) {
                     + (p.z as f64 - r[2]) * nn[2]
             })
             .collect();
-        let mut f: Vec<f64> = (0..n)
-            .map(|i| -mass[i] * params_stiffness(&u, i, &mass, kappa))
-            .collect();
+        let mut f: Vec<f64> = (0..n).map(|i| -mass[i] * stiffness * u[i]).collect();
         for &(i, j, w) in &layout.edges {
             let s = edge_k * w * (u[i] - u[j]);
             f[i] -= s;
@@ -215,9 +213,6 @@ fn torso_rigid_bodies(params: &TorsoParams) -> (Box<dyn FnMut()>, usize) {
         );
         t += 0.002;
     };
-    fn params_stiffness(u: &[f64], i: usize, _mass: &[f64], _kappa: f64) -> f64 {
-        1324.17 * u[i]
-    }
     (Box::new(step), n)
 }
 
