@@ -10,7 +10,7 @@ use std::time::Duration;
 use clap::{Args, Parser, Subcommand};
 use echogym_protocol::{ControlReply, ControlRequest, IpcLocation};
 
-use crate::client::{ConnectOptions, Connection};
+use crate::client::{ConnectOptions, Connection, ControlCallError};
 use crate::config::ServeConfig;
 use crate::envs::EnvRegistry;
 use crate::transport::Shutdown;
@@ -231,10 +231,12 @@ fn status(target: &Target, json: bool) -> Result<(), String> {
 
 fn stop(target: &Target) -> Result<(), String> {
     let connection = connect(target)?;
-    match connection
-        .request(&ControlRequest::Stop)
-        .map_err(|e| e.to_string())?
-    {
+    let reply = match connection.request(&ControlRequest::Stop) {
+        // The server may be gone before its reply reaches us: that is what we asked for.
+        Err(ControlCallError::ServerStopped) => ControlReply::Stopping,
+        other => other.map_err(|e| e.to_string())?,
+    };
+    match reply {
         ControlReply::Stopping => {
             // Wait for the server to go away so scripts can rely on it being gone.
             let deadline = std::time::Instant::now() + Duration::from_secs(10);

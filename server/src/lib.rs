@@ -17,6 +17,13 @@ mod spin;
 pub mod testing;
 pub mod transport;
 
+/// iceoryx2 logs warnings as debug dumps of its internals (kilobytes per line); echogym
+/// reports what matters through its own typed errors and `tracing`, so only iceoryx2's
+/// errors are let through.
+pub(crate) fn quiet_iceoryx_logs() {
+    iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
+}
+
 /// The names most users need.
 pub mod prelude {
     pub use crate::client::{AttachOptions, Connection, Lease};

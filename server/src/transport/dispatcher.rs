@@ -97,6 +97,7 @@ pub struct Dispatcher {
     pub(super) env_steps: u64,
     pub(super) reclaimed: u64,
     pub(super) shutdown: Shutdown,
+    last_reply: Instant,
     control: Server<
         ipc::Service,
         [u8],
@@ -128,6 +129,7 @@ impl Dispatcher {
     ) -> Result<Self, StartError> {
         let names = ServiceNames::new(&options.name)?;
         let iox_config = options.location.iceoryx_config()?;
+        crate::quiet_iceoryx_logs();
         let node_name = format!("echogym-serve-{}-{}", options.name, std::process::id());
         let node = NodeBuilder::new()
             .config(&iox_config)
@@ -191,6 +193,7 @@ impl Dispatcher {
             env_steps: 0,
             reclaimed: 0,
             shutdown,
+            last_reply: Instant::now(),
             control,
             wake,
             _control_service: control_service,
@@ -271,6 +274,7 @@ impl Dispatcher {
             if let Err(e) = sent {
                 tracing::debug!(error = ?e, "sending a control reply failed");
             }
+            self.last_reply = Instant::now();
         }
         served
     }
@@ -418,6 +422,12 @@ impl Dispatcher {
     fn stop(mut self) {
         for lease in &self.leases {
             lease.publish_status(0, StepStatus::ServerStopped, None, None);
+        }
+        // Give clients time to take what was just sent (the last control reply, the
+        // `ServerStopped` samples) before the ports, and their shared memory, go away.
+        let grace = std::time::Duration::from_millis(100);
+        if let Some(left) = grace.checked_sub(self.last_reply.elapsed()) {
+            std::thread::sleep(left);
         }
         let leases = self.leases.len();
         self.leases.clear();
