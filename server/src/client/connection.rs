@@ -66,6 +66,7 @@ pub struct Connection {
 impl Connection {
     /// Attach to the running server named `options.name`.
     pub fn connect(options: &ConnectOptions) -> Result<Self, ConnectError> {
+        crate::quiet_iceoryx_logs();
         let names = ServiceNames::new(&options.name)
             .map_err(|e| ConnectError::InvalidOptions(e.to_string()))?;
         let config = options
