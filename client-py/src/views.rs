@@ -5,7 +5,7 @@
 //! exchange: an array shows the data of the exchange that returned it until the next
 //! `step`/`reset` of its lease, after which its contents are unspecified.
 
-use echogym_protocol::{BatchLayout, DType, ObsField};
+use echogym_protocol::{BatchLayout, DType, ObsField, contiguous_strides};
 use numpy::ndarray::{ArrayViewD, IxDyn, ShapeBuilder};
 use numpy::{Element, PyArray, PyUntypedArrayMethods};
 use pyo3::prelude::*;
@@ -31,16 +31,6 @@ unsafe fn view<'py, T: Element>(
         (*array.as_array_ptr()).fields.flags &= !numpy::npyffi::NPY_ARRAY_WRITEABLE;
     }
     Ok(array.into_any())
-}
-
-fn contiguous_strides(shape: &[usize], elem: usize) -> Vec<usize> {
-    let mut strides = vec![0; shape.len()];
-    let mut stride = elem;
-    for d in (0..shape.len()).rev() {
-        strides[d] = stride;
-        stride *= shape[d];
-    }
-    strides
 }
 
 /// The arrays of the observation fields in the block at `block`.

@@ -124,6 +124,17 @@ pub struct FieldView {
     pub strides: Vec<usize>,
 }
 
+/// Byte strides of a C-contiguous array of `shape` with `elem`-byte elements.
+pub fn contiguous_strides(shape: &[usize], elem: usize) -> Vec<usize> {
+    let mut strides = vec![0; shape.len()];
+    let mut stride = elem;
+    for d in (0..shape.len()).rev() {
+        strides[d] = stride;
+        stride *= shape[d];
+    }
+    strides
+}
+
 fn align(offset: usize) -> usize {
     offset.next_multiple_of(PAYLOAD_ALIGN)
 }
@@ -202,12 +213,7 @@ impl BatchLayout {
         let mut shape = Vec::with_capacity(field.shape.len() + 1);
         shape.push(self.num_envs);
         shape.extend_from_slice(&field.shape);
-        let mut strides = vec![0; shape.len()];
-        let mut stride = elem;
-        for d in (1..shape.len()).rev() {
-            strides[d] = stride;
-            stride *= shape[d];
-        }
+        let mut strides = contiguous_strides(&shape, elem);
         strides[0] = self.obs_record_bytes;
         FieldView {
             offset: block_offset + field.offset,

@@ -21,7 +21,9 @@ pub use control::{
     EnvInfo, LeaseStatus, ServerStatus,
 };
 pub use ipc_location::{DEFAULT_PREFIX, IpcLocation, IpcLocationError, PREFIX_ENV, ROOT_ENV};
-pub use layout::{ActionLayout, BatchLayout, FieldView, LayoutError, ObsLayout, PAYLOAD_ALIGN};
+pub use layout::{
+    ActionLayout, BatchLayout, FieldView, LayoutError, ObsLayout, PAYLOAD_ALIGN, contiguous_strides,
+};
 pub use service_names::{InvalidServerName, ServiceNames};
 pub use spec::{ActionSpec, AutoresetMode, DType, EnvSpec, EnvSpecBuilder, ObsField, ScalarSpec};
 pub use status::{Op, ResetFlag, StepStatus};

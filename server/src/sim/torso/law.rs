@@ -50,8 +50,9 @@ pub trait ParticleLaw: Send + Sync + std::fmt::Debug {
     /// Add this law's terms at the state in `ctx`.
     fn add_terms(&self, ctx: &LawContext<'_>, out: &mut LawTerms);
 
-    /// Advance internal state (e.g. Maxwell branches) after a step ended at `u`, `v`.
-    fn advance(&mut self, _ctx: &LawContext<'_>, _u: &[f64], _v: &[f64]) {}
+    /// Advance internal state (e.g. Maxwell branches) after a step; `ctx` holds the
+    /// state the step ended at.
+    fn advance(&mut self, _ctx: &LawContext<'_>) {}
 
     /// A boxed copy (snapshots clone the torso).
     fn box_clone(&self) -> Box<dyn ParticleLaw>;

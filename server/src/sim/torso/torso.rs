@@ -299,9 +299,8 @@ impl Torso {
             mass: &self.mass,
             rest: &self.layout.rest,
         };
-        let (u, v) = (self.u.clone(), self.v.clone());
         for law in &mut self.laws {
-            law.advance(&ctx, &u, &v);
+            law.advance(&ctx);
         }
         self.t += dt;
         wrench
