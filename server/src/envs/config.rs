@@ -25,6 +25,16 @@ pub enum EnvConfigError {
         /// The value given.
         got: String,
     },
+    /// A value is invalid for a reason stated in words.
+    #[error("invalid config for {env_id}: `{key}`: {message}")]
+    Invalid {
+        /// The env id.
+        env_id: String,
+        /// The offending key.
+        key: &'static str,
+        /// What is wrong.
+        message: String,
+    },
 }
 
 /// Parse a JSON object into an env's config struct (which must deny unknown fields).

@@ -3,10 +3,12 @@
 //! An env writes its observation straight into the shared-memory record it is handed
 //! ([`EnvOutput`]); the pool and transport never copy observations.
 
+pub mod arena;
 mod config;
 mod env;
 mod null;
 mod registry;
+pub mod ultrasound_scan;
 
 pub use config::{EnvConfigError, parse_config};
 pub use env::{Env, EnvOutput, Transition};

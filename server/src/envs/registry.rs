@@ -6,9 +6,11 @@ use std::collections::BTreeMap;
 
 use echogym_protocol::{EnvInfo, EnvSpec};
 
+use super::arena::ArenaFactory;
 use super::config::EnvConfigError;
 use super::env::Env;
 use super::null::NullEnvFactory;
+use super::ultrasound_scan::UltrasoundScan;
 
 /// Builds envs of one id.
 pub trait EnvFactory: Send + Sync {
@@ -48,6 +50,7 @@ impl Default for EnvRegistry {
     fn default() -> Self {
         let mut registry = Self::empty();
         registry.register(Box::new(NullEnvFactory));
+        registry.register(Box::new(ArenaFactory::<UltrasoundScan>::default()));
         registry
     }
 }

@@ -5,8 +5,10 @@
 //! dynamics controllers need; [`torso`] is the soft torso of spring-damper particle
 //! joints; [`scene::Scene`] puts arm, probe, force-torque sensor, torso and table together.
 
+pub mod camera;
 pub mod controller;
 pub mod ft_sensor;
+pub mod ik;
 pub mod probe;
 pub mod robot;
 pub mod scene;

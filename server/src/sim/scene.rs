@@ -121,6 +121,7 @@ pub struct Scene {
     ideal: [f64; 6],
     reading: [f64; 6],
     tool_velocity: [f64; 3],
+    contact_force: [f64; 3],
     in_contact: bool,
 }
 
@@ -192,6 +193,7 @@ impl Scene {
             ideal: [0.0; 6],
             reading: [0.0; 6],
             tool_velocity: [0.0; 3],
+            contact_force: [0.0; 3],
             in_contact: false,
         };
         scene.tool_velocity = scene.tool_center_velocity();
@@ -305,6 +307,7 @@ impl Scene {
         let lever = sub(com_before, tip_p);
         let torso_t = add(w.torque, cross(lever, w.force));
         let mut force = add(rigid_f, w.force);
+        self.contact_force = force;
         let mut torque = add(rigid_t, torso_t);
         let m = self.params.probe.mass;
         let g = self.world.gravity();
@@ -347,6 +350,115 @@ impl Scene {
         self.torso_collider
     }
 
+    /// The probe's collider.
+    pub fn probe_collider(&self) -> ColliderHandle {
+        self.probe
+    }
+
+    /// Teleport the arm to joint positions `q` and velocities `qd`; the sensor's filter
+    /// and the contact state start afresh.
+    pub fn set_arm_state(&mut self, q: &[f64], qd: &[f64]) {
+        self.arm.set_state(&mut self.world, q, qd);
+        self.tool_velocity = self.tool_center_velocity();
+        self.torso_wrench = ContactWrench::default();
+        self.contact_force = [0.0; 3];
+        self.in_contact = false;
+    }
+
+    /// Replace the torso by one built from `params` at rest (laws other than the
+    /// spring-damper are dropped: add them again). Keeps the ray-cast collider in step.
+    pub fn replace_torso(&mut self, params: TorsoParams) -> Result<(), SceneError> {
+        let torso = Torso::new(params.clone(), self.params.probe.face)?;
+        let same_mesh = self.torso.as_ref().is_some_and(|t| {
+            t.params().size == params.size
+                && t.params().center_xy == params.center_xy
+                && t.params().bottom_z == params.bottom_z
+                && t.params().spacing == params.spacing
+        });
+        self.torso = Some(torso);
+        self.params.torso = Some(params);
+        if same_mesh {
+            self.sync_torso_collider();
+        } else {
+            if let Some(handle) = self.torso_collider.take() {
+                let s = &mut self.world.sets;
+                if let Some(body) = s.colliders[handle].parent() {
+                    s.bodies.remove(
+                        body,
+                        &mut s.islands,
+                        &mut s.colliders,
+                        &mut s.impulse_joints,
+                        &mut s.multibody_joints,
+                        &mut s.soft_bodies,
+                        true,
+                    );
+                }
+            }
+            let torso = self.torso.as_ref().expect("just set");
+            self.torso_collider = Some(torso_collider(&mut self.world, torso)?);
+        }
+        Ok(())
+    }
+
+    /// Set the probe's mass [kg] (the arm's last link's mass properties follow).
+    pub fn set_probe_mass(&mut self, mass: f64) {
+        self.params.probe.mass = mass;
+        let s = &mut self.world.sets;
+        s.colliders[self.probe].set_mass(mass as Real);
+        let last = self.arm.last_link();
+        s.bodies[last].recompute_mass_properties_from_colliders(&s.colliders);
+    }
+
+    /// Replace the force-torque sensor's imperfections, its noise seeded by `seed`.
+    pub fn set_ft_sensor(&mut self, params: FtSensorParams, seed: u64) {
+        self.params.ft_sensor = params.clone();
+        self.sensor = FtSensor::new(params, seed);
+    }
+
+    /// Add a loose box resting on the table with its centre at `xy`, rotated `yaw` about
+    /// z; returns its body.
+    pub fn add_box(&mut self, params: &BoxObjectParams, xy: [f64; 2], yaw: f64) -> RigidBodyHandle {
+        let h = params.half_extents;
+        let top = self.params.world.table.top_z;
+        let s = &mut self.world.sets;
+        let body = s.bodies.insert(
+            RigidBodyBuilder::dynamic()
+                .pose(Pose::from_parts(
+                    vec3([xy[0], xy[1], top + h[2]]),
+                    Rotation::from_rotation_z(yaw as Real),
+                ))
+                .ccd_enabled(false),
+        );
+        s.colliders.insert_with_parent(
+            ColliderBuilder::cuboid(h[0] as Real, h[1] as Real, h[2] as Real)
+                .mass(params.mass as Real)
+                .friction(params.friction as Real)
+                .collision_groups(InteractionGroups::new(
+                    groups::OBJECT,
+                    groups::TABLE | groups::PROBE | groups::OBJECT,
+                    InteractionTestMode::And,
+                )),
+            body,
+            &mut s.bodies,
+        );
+        body
+    }
+
+    /// Teleport a loose body to `xy` on the table (at rest, rotated `yaw` about z).
+    pub fn place_box(&mut self, body: RigidBodyHandle, half_z: f64, xy: [f64; 2], yaw: f64) {
+        let top = self.params.world.table.top_z;
+        let b = &mut self.world.sets.bodies[body];
+        b.set_position(
+            Pose::from_parts(
+                vec3([xy[0], xy[1], top + half_z]),
+                Rotation::from_rotation_z(yaw as Real),
+            ),
+            true,
+        );
+        b.set_linvel(Vector::ZERO, true);
+        b.set_angvel(Vector::ZERO, true);
+    }
+
     /// The force-torque sensor's reading `[fx, fy, fz, tx, ty, tz]` in the sensor frame
     /// [N, N·m], after the last step.
     pub fn ft_reading(&self) -> [f64; 6] {
@@ -356,6 +468,20 @@ impl Scene {
     /// The ideal (noise-free, unfiltered) reading after the last step.
     pub fn ft_ideal(&self) -> [f64; 6] {
         self.ideal
+    }
+
+    /// Total contact force on the probe in the last step (skin and rigid contacts)
+    /// [N, world], without sensor noise, weight or inertia.
+    pub fn contact_force(&self) -> [f64; 3] {
+        self.contact_force
+    }
+
+    /// Contact force pressing along the probe axis (positive when the probe pushes into
+    /// what it touches) [N], noise-free.
+    pub fn axial_contact_force(&self) -> f64 {
+        let axis = self.tip_pose().rotation * Vector::Z;
+        let f = self.contact_force;
+        -(f[0] * axis.x as f64 + f[1] * axis.y as f64 + f[2] * axis.z as f64)
     }
 
     /// Whether the probe touched anything (skin, table, objects) in the last step.
@@ -383,6 +509,29 @@ impl Scene {
     pub fn arm_kinematics(&mut self) -> (&Arm, &World) {
         self.arm.update_kinematics(&mut self.world);
         (&self.arm, &self.world)
+    }
+}
+
+/// A loose box on the table (the cube of the push task).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BoxObjectParams {
+    /// Half extents [m]. Default 0.025 (a 5 cm cube).
+    pub half_extents: [f64; 3],
+    /// Mass [kg]. Default 0.2.
+    pub mass: f64,
+    /// Friction coefficient (combined with the table's by rapier's average rule).
+    /// Default 0.5.
+    pub friction: f64,
+}
+
+impl Default for BoxObjectParams {
+    fn default() -> Self {
+        Self {
+            half_extents: [0.025; 3],
+            mass: 0.2,
+            friction: 0.5,
+        }
     }
 }
 

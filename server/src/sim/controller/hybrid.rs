@@ -74,7 +74,11 @@ impl HybridForceMotion {
         let dt = scene.dt();
         let measured = Self::measured_force(scene);
         let error = self.force - measured;
-        self.integral = (self.integral + error * dt).clamp(-20.0, 20.0);
+        // Integrate only in contact: in free air the error is the whole target, and a
+        // wound-up integral overshoots the force at touch-down.
+        if scene.in_contact() {
+            self.integral = (self.integral + error * dt).clamp(-20.0, 20.0);
+        }
         let axis = arr3(scene.tip_pose().rotation * Vector::Z);
         let n = Vector3::new(axis[0], axis[1], axis[2]);
         let select_force = n * n.transpose();

@@ -30,6 +30,9 @@ pub struct LawTerms {
     pub stiffness: Vec<f64>,
     /// `-∂f/∂v` [N·s/m].
     pub damping: Vec<f64>,
+    /// Volume the laws add to the torso's rest volume [m³] (e.g. inhaled air): the
+    /// volume-preservation pressure acts on the change beyond it.
+    pub volume_offset: f64,
 }
 
 impl LawTerms {
@@ -39,6 +42,7 @@ impl LawTerms {
             v.clear();
             v.resize(n, 0.0);
         }
+        self.volume_offset = 0.0;
     }
 }
 

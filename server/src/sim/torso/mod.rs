@@ -12,6 +12,7 @@
 //!
 //! Units: m, s, kg, N. Frame: world, z up; the torso's bottom rests on the table.
 
+mod breathing;
 mod contact;
 mod law;
 mod layout;
@@ -21,6 +22,7 @@ mod solver;
 #[allow(clippy::module_inception)]
 mod torso;
 
+pub use breathing::{Breathing, BreathingParamError, BreathingParams};
 pub use contact::{ContactWrench, ProbeFace, ProbeKinematics};
 pub(crate) use contact::{add, cross, scale, sub};
 pub use law::{LawContext, LawTerms, LinearSpringDamper, ParticleLaw};

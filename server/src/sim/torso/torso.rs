@@ -132,6 +132,13 @@ impl Torso {
         &self.v
     }
 
+    /// Set displacements [m] and velocities [m/s] along the rest normals (e.g. to start
+    /// at a driven equilibrium).
+    pub fn set_state(&mut self, u: &[f64], v: &[f64]) {
+        self.u.copy_from_slice(u);
+        self.v.copy_from_slice(v);
+    }
+
     /// Simulated time [s].
     pub fn time(&self) -> f64 {
         self.t
@@ -338,7 +345,7 @@ impl Torso {
             self.rhs[j] += f;
         }
         if self.volume_k > 0.0 {
-            let dv = self.volume_change();
+            let dv = self.volume_change() - self.terms.volume_offset;
             for (r, a) in self.rhs.iter_mut().zip(&self.layout.area) {
                 *r -= dt * self.volume_k * dv * a;
             }
@@ -471,6 +478,52 @@ impl Torso {
             out.samples_in_contact += 1;
         }
         out
+    }
+
+    /// Static displacements [m] of the free torso (no probe) under per-particle normal
+    /// forces `force` [N] with `volume_offset` [m³] added to its rest volume: the exact
+    /// equilibrium of the discrete model with the laws' stiffness at rest. Used to
+    /// calibrate driven laws (breathing) so they reach a stated displacement.
+    pub fn static_response(&self, force: &[f64], volume_offset: f64) -> Vec<f64> {
+        let n = self.u.len();
+        assert_eq!(force.len(), n, "one force per particle");
+        let mut terms = LawTerms::default();
+        terms.reset(n);
+        let zeros = vec![0.0; n];
+        let ctx = LawContext {
+            t: self.t,
+            dt: 0.0,
+            u: &zeros,
+            v: &zeros,
+            mass: &self.mass,
+            rest: &self.layout.rest,
+        };
+        for law in &self.laws {
+            law.add_terms(&ctx, &mut terms);
+        }
+        let diag: Vec<f64> = (0..n)
+            .map(|i| terms.stiffness[i] + self.layout.ground[i] * self.edge_k)
+            .collect();
+        let rhs: Vec<f64> = (0..n)
+            .map(|i| force[i] + self.volume_k * volume_offset * self.layout.area[i])
+            .collect();
+        let system = System {
+            diag: &diag,
+            edges: &self.layout.edges,
+            edge_coef: self.edge_k,
+            volume: (self.volume_k > 0.0).then_some((self.layout.area.as_slice(), self.volume_k)),
+            contacts: &[],
+        };
+        let mut u = vec![0.0; n];
+        conjugate_gradient(
+            &system,
+            &rhs,
+            &mut u,
+            1e-12,
+            10_000,
+            &mut Workspace::default(),
+        );
+        u
     }
 
     /// Static stiffness [N/m] of the torso under a flat, level probe face centred at

@@ -1,0 +1,21 @@
+//! The arena shared by the physics envs: config, observations and cameras, domain
+//! randomization, episode recording, and the generic env that runs a [`Task`].
+
+mod arena_env;
+mod config;
+mod observation;
+mod randomization;
+mod recorder;
+
+use rapier3d::prelude::Rotation;
+
+pub use arena_env::{ArenaEnv, ArenaFactory, Task};
+pub use config::{ArenaConfig, RecordConfig, TaskConfig};
+pub use observation::{CAMERA_FAR, CAMERA_PRESETS, CameraConfig, Observation};
+pub use randomization::{Draw, Randomization, gaussian};
+pub use recorder::EpisodeRecorder;
+
+/// The probe upright: face down (probe z along world −z), array along world y.
+pub fn upright() -> Rotation {
+    Rotation::from_rotation_x(std::f32::consts::PI as _)
+}

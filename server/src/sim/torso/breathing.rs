@@ -1,0 +1,243 @@
+//! [`Breathing`]: the torso's top rises and falls with respiration, driven through the
+//! particle joints (the seed's "outward forces on the upper layer").
+//!
+//! Each top particle `i` gets an outward force `a(t)·d_i` on top of its spring-damper,
+//! where `d_i = g·k_i·s(x, y)`: `k_i` its spring stiffness, `s` a smooth dome (1 at the
+//! centre, 0 at the edges: `cos(π/2·x/hx)·cos(π/2·y/hy)` in torso-centred coordinates),
+//! and `g` calibrated from the torso's static response so the centre of the top rests at
+//! exactly `a(t)` above its rest height. The drive adds its own volume to the torso's rest
+//! volume (inhaled air), so volume preservation does not fight it. Because the drive is a
+//! force and the springs are unchanged, a probe held in place feels breathing as a force
+//! oscillating at the breathing rate.
+//!
+//! `a(t) = A·(1 − cos φ)/2` (0 at full exhalation), `φ̇ = 2π·f(t)`, and the rate drifts
+//! slowly: `f(t) = f₀·(1 + δ(t))` with `δ` an Ornstein–Uhlenbeck process (time constant
+//! 30 s, stationary standard deviation `rate_drift`), seeded.
+
+use rand::SeedableRng;
+use rand_distr::{Distribution, StandardNormal};
+use rand_pcg::Pcg64Mcg;
+use serde::{Deserialize, Serialize};
+
+use super::law::{LawContext, LawTerms, ParticleLaw};
+use super::torso::Torso;
+
+/// Time constant of the breathing-rate drift [s].
+const DRIFT_TIME_CONSTANT: f64 = 30.0;
+
+/// Breathing motion of the torso's top.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BreathingParams {
+    /// Breaths per minute. Default 15 (adult at rest: 12–20).
+    pub rate_bpm: f64,
+    /// Rise of the top's centre at full inhalation [m]. Default 0.005.
+    pub amplitude: f64,
+    /// Stationary relative standard deviation of the slowly drifting rate. Default 0.05.
+    pub rate_drift: f64,
+    /// Phase at t = 0 [rad] (0: fully exhaled). Default 0.
+    pub phase: f64,
+}
+
+impl Default for BreathingParams {
+    fn default() -> Self {
+        Self {
+            rate_bpm: 15.0,
+            amplitude: 0.005,
+            rate_drift: 0.05,
+            phase: 0.0,
+        }
+    }
+}
+
+/// A breathing parameter out of range.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("breathing `{key}` must be {expected}, got {got}")]
+pub struct BreathingParamError {
+    /// The key.
+    pub key: &'static str,
+    /// The allowed range.
+    pub expected: &'static str,
+    /// The value given.
+    pub got: f64,
+}
+
+impl BreathingParams {
+    /// Check ranges.
+    pub fn validate(&self) -> Result<(), BreathingParamError> {
+        let err = |key, expected, got| Err(BreathingParamError { key, expected, got });
+        if !(1.0..=60.0).contains(&self.rate_bpm) {
+            return err("rate_bpm", "in [1, 60] breaths/min", self.rate_bpm);
+        }
+        if !(0.0..=0.03).contains(&self.amplitude) {
+            return err("amplitude", "in [0, 0.03] m", self.amplitude);
+        }
+        if !(0.0..=0.5).contains(&self.rate_drift) {
+            return err("rate_drift", "in [0, 0.5]", self.rate_drift);
+        }
+        if !self.phase.is_finite() {
+            return err("phase", "finite", self.phase);
+        }
+        Ok(())
+    }
+}
+
+/// The breathing law (see the module docs).
+#[derive(Debug, Clone)]
+pub struct Breathing {
+    params: BreathingParams,
+    drive: Vec<f64>,
+    response: Vec<f64>,
+    volume_per_metre: f64,
+    phase: f64,
+    drift: f64,
+    rng: Pcg64Mcg,
+}
+
+impl Breathing {
+    /// Breathing for `torso` (calibrated against its current laws), rate drift seeded by
+    /// `seed`.
+    pub fn new(
+        params: BreathingParams,
+        torso: &Torso,
+        seed: u64,
+    ) -> Result<Self, BreathingParamError> {
+        params.validate()?;
+        let layout = torso.layout();
+        let p = torso.params();
+        let [hx, hy] = [p.size[0] / 2.0, p.size[1] / 2.0];
+        let n = layout.len();
+        let mut shape = vec![0.0; n];
+        let mut centre = 0;
+        let mut nearest = f64::INFINITY;
+        for (i, s) in shape.iter_mut().enumerate().take(layout.top_len()) {
+            let x = layout.rest[i][0] - p.center_xy[0];
+            let y = layout.rest[i][1] - p.center_xy[1];
+            let cx = (std::f64::consts::FRAC_PI_2 * x / hx).cos().max(0.0);
+            let cy = (std::f64::consts::FRAC_PI_2 * y / hy).cos().max(0.0);
+            *s = cx * cy;
+            if x.hypot(y) < nearest {
+                nearest = x.hypot(y);
+                centre = i;
+            }
+        }
+        let spring: Vec<f64> = torso
+            .masses()
+            .iter()
+            .zip(&shape)
+            .map(|(m, s)| m * p.stiffness * s)
+            .collect();
+        let volume: f64 = layout.area.iter().zip(&shape).map(|(a, s)| a * s).sum();
+        let from_force = torso.static_response(&spring, 0.0);
+        let from_volume = torso.static_response(&vec![0.0; n], volume);
+        let gain = (1.0 - from_volume[centre]) / from_force[centre];
+        Ok(Self {
+            drive: spring.iter().map(|k| gain * k).collect(),
+            response: from_force
+                .iter()
+                .zip(&from_volume)
+                .map(|(f, v)| gain * f + v)
+                .collect(),
+            volume_per_metre: volume,
+            phase: params.phase,
+            params,
+            drift: 0.0,
+            rng: Pcg64Mcg::seed_from_u64(seed),
+        })
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &BreathingParams {
+        &self.params
+    }
+
+    /// Rise of the top's centre the drive holds now [m].
+    pub fn offset(&self) -> f64 {
+        self.params.amplitude * (1.0 - self.phase.cos()) / 2.0
+    }
+
+    /// Particle displacements [m] at equilibrium under the current drive (to start an
+    /// episode mid-breath without a transient).
+    pub fn equilibrium(&self) -> Vec<f64> {
+        let a = self.offset();
+        self.response.iter().map(|r| a * r).collect()
+    }
+
+    /// Current breathing rate [Hz] (with drift).
+    pub fn rate_hz(&self) -> f64 {
+        self.params.rate_bpm / 60.0 * (1.0 + self.drift).max(0.1)
+    }
+}
+
+impl ParticleLaw for Breathing {
+    fn name(&self) -> &'static str {
+        "breathing"
+    }
+
+    fn add_terms(&self, _ctx: &LawContext<'_>, out: &mut LawTerms) {
+        let a = self.offset();
+        for (f, d) in out.force.iter_mut().zip(&self.drive) {
+            *f += a * d;
+        }
+        out.volume_offset += a * self.volume_per_metre;
+    }
+
+    fn advance(&mut self, ctx: &LawContext<'_>) {
+        self.phase += 2.0 * std::f64::consts::PI * self.rate_hz() * ctx.dt;
+        if self.params.rate_drift > 0.0 {
+            let theta = ctx.dt / DRIFT_TIME_CONSTANT;
+            let noise: f64 = StandardNormal.sample(&mut self.rng);
+            self.drift +=
+                -theta * self.drift + self.params.rate_drift * (2.0 * theta).sqrt() * noise;
+        }
+    }
+
+    fn box_clone(&self) -> Box<dyn ParticleLaw> {
+        Box::new(self.clone())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::torso::{ProbeFace, TorsoParams};
+
+    fn centre_rise(torso: &Torso) -> f64 {
+        let c = torso.params().center_xy;
+        torso.skin_z(c[0], c[1]).unwrap() - torso.params().top_z()
+    }
+
+    #[test]
+    fn top_centre_follows_the_stated_amplitude() {
+        let mut torso = Torso::new(TorsoParams::default(), ProbeFace::default()).unwrap();
+        let params = BreathingParams {
+            rate_drift: 0.0,
+            ..Default::default()
+        };
+        let law = Breathing::new(params, &torso, 1).unwrap();
+        torso.add_law(Box::new(law));
+        let dt = 0.002;
+        let mut highest: f64 = 0.0;
+        let mut lowest: f64 = 1.0;
+        // Two breaths at 15/min (8 s); skip the first second of transient.
+        for step in 0..4000 {
+            torso.step(dt, None);
+            if step > 500 {
+                let rise = centre_rise(&torso);
+                highest = highest.max(rise);
+                lowest = lowest.min(rise);
+            }
+        }
+        assert!((highest - 0.005).abs() < 0.0005, "peak rise {highest}");
+        assert!(lowest.abs() < 0.0005, "lowest {lowest}");
+    }
+
+    #[test]
+    fn rejects_out_of_range_values() {
+        let bad = BreathingParams {
+            rate_bpm: 0.0,
+            ..Default::default()
+        };
+        assert_eq!(bad.validate().unwrap_err().key, "rate_bpm");
+    }
+}
