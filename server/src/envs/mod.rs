@@ -4,9 +4,11 @@
 //! ([`EnvOutput`]); the pool and transport never copy observations.
 
 pub mod arena;
+pub mod calibration_press;
 mod config;
 mod env;
 mod null;
+pub mod push_cube;
 mod registry;
 pub mod ultrasound_scan;
 

@@ -7,9 +7,11 @@ use std::collections::BTreeMap;
 use echogym_protocol::{EnvInfo, EnvSpec};
 
 use super::arena::ArenaFactory;
+use super::calibration_press::CalibrationPress;
 use super::config::EnvConfigError;
 use super::env::Env;
 use super::null::NullEnvFactory;
+use super::push_cube::PushCube;
 use super::ultrasound_scan::UltrasoundScan;
 
 /// Builds envs of one id.
@@ -51,6 +53,8 @@ impl Default for EnvRegistry {
         let mut registry = Self::empty();
         registry.register(Box::new(NullEnvFactory));
         registry.register(Box::new(ArenaFactory::<UltrasoundScan>::default()));
+        registry.register(Box::new(ArenaFactory::<PushCube>::default()));
+        registry.register(Box::new(ArenaFactory::<CalibrationPress>::default()));
         registry
     }
 }

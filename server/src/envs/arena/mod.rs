@@ -19,3 +19,5 @@ pub use recorder::EpisodeRecorder;
 pub fn upright() -> Rotation {
     Rotation::from_rotation_x(std::f32::consts::PI as _)
 }
+#[cfg(test)]
+mod tests;

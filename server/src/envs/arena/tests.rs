@@ -1,0 +1,272 @@
+//! Tests every physics env through the registry: seeded determinism, config errors,
+//! randomization ranges, the scripted press and its recording, breathing under a held
+//! probe.
+
+use echogym_protocol::EnvSpec;
+
+use crate::envs::env::{Env, EnvOutput};
+use crate::envs::registry::EnvRegistry;
+
+const IDS: [&str; 3] = [
+    "echogym/UltrasoundScan-v0",
+    "echogym/PushCube-v0",
+    "echogym/CalibrationPress-v0",
+];
+
+fn map(json: serde_json::Value) -> serde_json::Map<String, serde_json::Value> {
+    json.as_object().expect("object").clone()
+}
+
+fn make(id: &str, config: serde_json::Value) -> (EnvSpec, Box<dyn Env>) {
+    let registry = EnvRegistry::default();
+    let factory = registry.get(id).unwrap();
+    let spec = factory.spec(&map(config)).unwrap();
+    let env = factory.make(&spec);
+    (spec, env)
+}
+
+/// Run `steps` steps of a fixed action sequence; returns every record and info row.
+fn rollout(
+    id: &str,
+    config: serde_json::Value,
+    seed: u64,
+    steps: usize,
+) -> Vec<(Vec<u8>, Vec<f32>)> {
+    let (spec, mut env) = make(id, config);
+    let mut record = vec![0u8; spec.obs_record_bytes];
+    let mut info = vec![0.0f32; spec.info_keys.len()];
+    let mut out = EnvOutput::new(&spec.observation, &mut record, &mut info);
+    env.reset(Some(seed), &mut out);
+    let mut trace = vec![(record.clone(), info.clone())];
+    for k in 0..steps {
+        let action: Vec<f32> = (0..spec.action.size)
+            .map(|i| ((k * 7 + i * 3) % 11) as f32 / 11.0 - 0.5)
+            .collect();
+        let mut out = EnvOutput::new(&spec.observation, &mut record, &mut info);
+        env.step(&action, &mut out);
+        trace.push((record.clone(), info.clone()));
+    }
+    trace
+}
+
+#[test]
+fn every_env_is_deterministic_under_a_seed() {
+    for id in IDS {
+        let a = rollout(id, serde_json::json!({}), 11, 20);
+        let b = rollout(id, serde_json::json!({}), 11, 20);
+        assert!(a == b, "{id}: same seed, different rollout");
+        let c = rollout(id, serde_json::json!({}), 12, 20);
+        assert!(a != c, "{id}: different seeds, same rollout");
+    }
+}
+
+#[test]
+fn cameras_deliver_images_in_the_record() {
+    let config = serde_json::json!({
+        "cameras": [{"name": "front", "width": 32, "height": 24}, {"name": "probe", "rgb": false}],
+    });
+    let trace = rollout("echogym/UltrasoundScan-v0", config.clone(), 1, 2);
+    let (spec, _) = make("echogym/UltrasoundScan-v0", config);
+    let rgb = spec.field("front_rgb").unwrap();
+    assert_eq!(rgb.shape, vec![24, 32, 3]);
+    let depth = spec.field("front_depth").unwrap();
+    let (record, _) = trace.last().unwrap();
+    let pixels = &record[rgb.offset..rgb.offset + rgb.byte_len()];
+    assert!(pixels.iter().any(|&p| p != pixels[0]), "a flat image");
+    let d: &[f32] = bytemuck::cast_slice(&record[depth.offset..depth.offset + depth.byte_len()]);
+    assert!(d.iter().all(|v| *v > 0.0 && *v <= 10.0));
+    let probe = spec.field("probe_depth").unwrap();
+    let d: &[f32] = bytemuck::cast_slice(&record[probe.offset..probe.offset + probe.byte_len()]);
+    // The probe camera looks at the skin a few centimetres away.
+    let centre = d[32 * 64 + 32];
+    assert!(centre > 0.05 && centre < 0.3, "probe camera depth {centre}");
+    assert!(spec.field("probe_rgb").is_none());
+}
+
+#[test]
+fn bad_configs_name_the_key() {
+    let registry = EnvRegistry::default();
+    let cases = [
+        (serde_json::json!({"horizn": 10}), "horizn"),
+        (
+            serde_json::json!({"task": {"target_forse": 1.0}}),
+            "target_forse",
+        ),
+        (
+            serde_json::json!({"task": {"target_force": -1.0}}),
+            "task.target_force",
+        ),
+        (
+            serde_json::json!({"randomization": {"torso_stiffness": [1600.0, 1300.0]}}),
+            "randomization.torso_stiffness",
+        ),
+        (
+            serde_json::json!({"cameras": [{"name": "nowhere"}]}),
+            "cameras",
+        ),
+        (
+            serde_json::json!({"controller": {"control_freq": 5000.0}}),
+            "controller",
+        ),
+        (
+            serde_json::json!({"torso": {"stiffness": -1.0}}),
+            "stiffness",
+        ),
+        (
+            serde_json::json!({"observations": ["joint_pos", "x_ray"]}),
+            "x_ray",
+        ),
+    ];
+    let factory = registry.get("echogym/UltrasoundScan-v0").unwrap();
+    for (config, key) in cases {
+        let err = factory.spec(&map(config.clone())).unwrap_err().to_string();
+        assert!(err.contains(key), "{config}: {err}");
+    }
+}
+
+#[test]
+fn randomization_stays_in_range_and_follows_the_seed() {
+    use super::{ArenaEnv, TaskConfig};
+    use crate::envs::ultrasound_scan::{UltrasoundScan, UltrasoundScanConfig};
+    let config = UltrasoundScanConfig::arena_default();
+    let draw = |seed: u64| {
+        let mut env = ArenaEnv::<UltrasoundScan>::new(config.clone()).unwrap();
+        let (spec, _) = make("echogym/UltrasoundScan-v0", serde_json::json!({}));
+        let mut record = vec![0u8; spec.obs_record_bytes];
+        let mut info = vec![0.0f32; spec.info_keys.len()];
+        env.reset(
+            Some(seed),
+            &mut EnvOutput::new(&spec.observation, &mut record, &mut info),
+        );
+        let torso = env.scene().torso().unwrap().params().clone();
+        (torso, env.scene().params().probe.mass)
+    };
+    let mut seen_low = false;
+    for seed in 0..12 {
+        let (torso, mass) = draw(seed);
+        assert!(
+            (1300.0..=1600.0).contains(&torso.stiffness),
+            "{}",
+            torso.stiffness
+        );
+        assert!((17.0..=41.0).contains(&torso.damping), "{}", torso.damping);
+        assert!(torso.center_xy[0].abs() <= 0.02 && torso.center_xy[1].abs() <= 0.02);
+        assert!((0.18..=0.22).contains(&mass));
+        seen_low |= torso.stiffness < 1450.0;
+        assert_eq!(draw(seed), (torso, mass), "seed {seed} not reproducible");
+    }
+    assert!(seen_low, "draws never reached the lower half of the range");
+}
+
+#[test]
+fn scripted_press_reaches_depth_and_records_it() {
+    let dir = std::env::temp_dir().join(format!("echogym-press-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let config = serde_json::json!({
+        "task": {"site": "center", "hold_time": 0.3},
+        "record": {"dir": dir},
+    });
+    let (spec, mut env) = make("echogym/CalibrationPress-v0", config);
+    let mut record = vec![0u8; spec.obs_record_bytes];
+    let mut info = vec![0.0f32; spec.info_keys.len()];
+    env.reset(
+        Some(0),
+        &mut EnvOutput::new(&spec.observation, &mut record, &mut info),
+    );
+    let mut deepest: f32 = 0.0;
+    let mut strongest: f32 = 0.0;
+    let mut steps = 0;
+    loop {
+        let t = env.step(
+            &vec![0.0; spec.action.size],
+            &mut EnvOutput::new(&spec.observation, &mut record, &mut info),
+        );
+        steps += 1;
+        deepest = deepest.max(info[1]);
+        strongest = strongest.max(info[3]);
+        if t.terminated || steps > 4000 {
+            break;
+        }
+    }
+    assert_eq!(info[5], 1.0, "protocol did not complete in {steps} steps");
+    assert!((deepest - 0.015).abs() < 0.002, "deepest {deepest}");
+    // ≈ 1.7 kN/m static stiffness at the centre × 15 mm.
+    assert!(strongest > 15.0 && strongest < 45.0, "force {strongest}");
+    drop(env);
+    let datasets: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
+    assert_eq!(datasets.len(), 1);
+    let path = datasets[0].as_ref().unwrap().path();
+    let dataset = crate::recordings::Dataset::read(&path).unwrap();
+    assert_eq!(dataset.recordings.len(), 1);
+    assert_eq!(dataset.meta.recordings[0].site, "center");
+    let rec = &dataset.recordings[0];
+    let peak = rec.f.iter().map(|f| f[2]).fold(f64::MIN, f64::max);
+    assert!(peak > 10.0, "recorded force peak {peak}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Force during the hold of a scripted press (position held) at the centre.
+fn held_force(breathing: bool) -> Vec<f64> {
+    let mut config = serde_json::json!({
+        "task": {"site": "center", "hold_time": 12.0, "press_depth": 0.005},
+        "horizon": 20000,
+        "randomization": {"breathing_rate_bpm": [15.0, 15.0], "breathing_amplitude": [0.005, 0.005]},
+    });
+    if breathing {
+        config["breathing"] = serde_json::json!({"rate_drift": 0.0});
+    }
+    let (spec, mut env) = make("echogym/CalibrationPress-v0", config);
+    let mut record = vec![0u8; spec.obs_record_bytes];
+    let mut info = vec![0.0f32; spec.info_keys.len()];
+    env.reset(
+        Some(0),
+        &mut EnvOutput::new(&spec.observation, &mut record, &mut info),
+    );
+    let mut force = Vec::new();
+    for _ in 0..20000 {
+        let t = env.step(
+            &vec![0.0; spec.action.size],
+            &mut EnvOutput::new(&spec.observation, &mut record, &mut info),
+        );
+        // Phase 1 (hold), after a second of settling.
+        if info[4] == 1.0 {
+            force.push(f64::from(info[3]));
+        }
+        if t.terminated {
+            break;
+        }
+    }
+    force.split_off(500)
+}
+
+/// Amplitude of the component of `x` (sampled at 500 Hz) at `hz`.
+fn amplitude_at(x: &[f64], hz: f64) -> f64 {
+    let mean = x.iter().sum::<f64>() / x.len() as f64;
+    let (mut c, mut s) = (0.0, 0.0);
+    for (k, v) in x.iter().enumerate() {
+        let phase = std::f64::consts::TAU * hz * k as f64 / 500.0;
+        c += (v - mean) * phase.cos();
+        s += (v - mean) * phase.sin();
+    }
+    2.0 * c.hypot(s) / x.len() as f64
+}
+
+#[test]
+fn breathing_makes_a_held_probe_feel_the_breathing_rate() {
+    let force = held_force(true);
+    assert!(force.len() > 4000, "hold too short: {}", force.len());
+    let at_rate = amplitude_at(&force, 0.25);
+    for other in [0.1, 0.4, 0.6] {
+        assert!(
+            at_rate > 3.0 * amplitude_at(&force, other),
+            "0.25 Hz not dominant vs {other} Hz"
+        );
+    }
+    // 5 mm of rise against ≈ 1.7 kN/m, partly absorbed by the held arm: newtons.
+    assert!(at_rate > 1.0, "breathing force amplitude {at_rate} N");
+    let still = held_force(false);
+    assert!(
+        amplitude_at(&still, 0.25) < 0.1 * at_rate,
+        "force oscillates without breathing"
+    );
+}
