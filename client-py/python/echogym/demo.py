@@ -1,73 +1,237 @@
-"""``python -m echogym.demo``: drive a batch of envs through a server and report throughput.
+"""``echogym demo``: a force-controlled ultrasound sweep on parallel envs.
 
-Connects to the server named ``--server`` (starting a private one if none runs), leases
-``--num-envs`` envs, steps them with random actions for ``--seconds`` and prints
-env-steps/s and the step round-trip latency of a single env.
+Starts (or joins) an echogym server, leases ``--num-envs`` ``echogym/UltrasoundScan-v0``
+envs with the hybrid force/motion controller (force along the probe axis held at 5 N by
+the controller, motion in the skin's plane from the policy), and drives them with a
+scripted policy over shared memory: follow the moving target point on the torso and keep
+the probe upright. The torso breathes and its stiffness, damping and placement are
+randomized per env.
+
+Prints a progress bar, then force tracking (share of the in-contact time within ±1 N of
+the target), sweep completion and env-steps/s; writes ``force.png`` (contact force vs
+time against the target), ``frames.png`` (camera frames) and ``summary.json`` to
+``--out``. Exit code 0 when the sweep met the ±1 N / 80 % criterion, else 1.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
+from pathlib import Path
 
-import gymnasium as gym
 import numpy as np
 
 import echogym
+from echogym.gym_vector import EchoVectorEnv
+
+ENV_ID = "echogym/UltrasoundScan-v0"
+#: The probe upright (face down, array along world y) as a quaternion (x, y, z, w).
+UPRIGHT = np.array([1.0, 0.0, 0.0, 0.0])
+#: Look-ahead of the scripted policy along the target's motion [s].
+LEAD_S = 0.2
+POSITION_LIMIT = 0.05
+ROTATION_LIMIT = 0.5
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product of (x, y, z, w) quaternions, batched over the first axis."""
+    ax, ay, az, aw = np.moveaxis(a, -1, 0)
+    bx, by, bz, bw = np.moveaxis(b, -1, 0)
+    return np.stack([
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    ], axis=-1)
+
+
+def rotation_to_upright(quat: np.ndarray) -> np.ndarray:
+    """Axis-angle (world frame) that turns each probe orientation into upright."""
+    conj = quat * np.array([-1.0, -1.0, -1.0, 1.0])
+    err = _quat_mul(np.broadcast_to(UPRIGHT, quat.shape), conj)
+    err = np.where(err[..., 3:4] < 0, -err, err)
+    vec = err[..., :3]
+    norm = np.linalg.norm(vec, axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(norm, err[..., 3:4])
+    return np.where(norm > 1e-12, vec / np.maximum(norm, 1e-12) * angle, 0.0)
+
+
+def scripted_action(obs: dict[str, np.ndarray]) -> np.ndarray:
+    """The sweep policy for the hybrid controller: tangent-plane motion towards the
+    target point (with look-ahead), orientation back to upright; the controller holds
+    the force."""
+    errors = obs["task_errors"].astype(np.float64)
+    n = errors.shape[0]
+    action = np.zeros((n, 6))
+    action[:, 0:2] = (-errors[:, 0:2] + LEAD_S * errors[:, 6:8]) / POSITION_LIMIT
+    action[:, 3:6] = rotation_to_upright(obs["probe_pose"][:, 3:7].astype(np.float64)) / ROTATION_LIMIT
+    return np.clip(action, -1.0, 1.0).astype(np.float32)
 
 
 def _bar(fraction: float, width: int = 30) -> str:
-    filled = int(fraction * width)
+    filled = int(round(fraction * width))
     return "[" + "#" * filled + "." * (width - filled) + "]"
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m echogym.demo", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--env", default="echogym/Null-v0", help="env id (default %(default)s)")
-    parser.add_argument("--num-envs", type=int, default=64, help="batch size (default %(default)s)")
-    parser.add_argument("--seconds", type=float, default=5.0, help="run time (default %(default)s)")
-    parser.add_argument("--server", default=None, help="server name (default $ECHOGYM_SERVER or 'default')")
-    args = parser.parse_args(argv)
-
-    client = echogym.connect(args.server, autostart=True)
-    status = client.status()
-    print(f"echogym {echogym.__version__}: server {status['name']!r} (pid {status['pid']}, "
-          f"{status['threads']} worker threads)")
-    envs = gym.make_vec(args.env, num_envs=args.num_envs, vectorization_mode="vector_entry_point",
-                        server=client.name)
-    rng = np.random.default_rng(0)
-    envs.reset(seed=0)
-    actions = rng.uniform(-1, 1, envs.action_space.shape).astype(np.float32)
-    steps, started, last_print = 0, time.perf_counter(), 0.0
-    while (elapsed := time.perf_counter() - started) < args.seconds:
-        for _ in range(100):
-            envs.step(actions)
-        steps += 100
-        if elapsed - last_print > 0.25:
-            last_print = elapsed
-            rate = steps * args.num_envs / elapsed
-            sys.stdout.write(f"\r{_bar(elapsed / args.seconds)} {rate:12,.0f} env-steps/s")
+def run(num_envs: int, horizon: int, seed: int, server: str | None, robot: str,
+        camera_size: int, progress: bool = True) -> dict:
+    """Run one sweep episode on every env; the traces and figures as a dict."""
+    client = echogym.connect(server, autostart=True)
+    common = dict(server=client.name, robot=robot, horizon=horizon,
+                  controller={"kind": "hybrid_force_motion", "control_freq": 500.0})
+    envs = EchoVectorEnv(ENV_ID, num_envs, **common)
+    # A twin of env 0 (same config and seed, so the same episode) with cameras: frames
+    # for the figure without rendering every env.
+    cameras = [
+        {"name": "front", "width": camera_size, "height": camera_size, "depth": False},
+        {"name": "side", "width": camera_size, "height": camera_size, "depth": False},
+        {"name": "probe", "width": camera_size, "height": camera_size, "rgb": False},
+    ]
+    viewer = EchoVectorEnv(ENV_ID, 1, cameras=cameras, **common)
+    dt = envs.echo_spec["dt_s"]
+    keys = envs.echo_spec["info_keys"]
+    obs, info = envs.reset(seed=seed)
+    view, _ = viewer.reset(seed=seed)
+    force = np.full((horizon, num_envs), np.nan)
+    contact = np.zeros((horizon, num_envs), bool)
+    progress_at_end = np.zeros(num_envs)
+    ended = np.zeros(num_envs, bool)
+    termination = np.zeros(num_envs)
+    frames: list[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = []
+    frame_steps = set(np.linspace(0, horizon - 1, 4).astype(int))
+    started = time.perf_counter()
+    for step in range(horizon):
+        action = scripted_action(obs)
+        obs, reward, terminated, truncated, info = envs.step(action)
+        view, *_ = viewer.step(action[:1])
+        live = ~ended
+        # With same-step autoreset, an ended env's info is in `final_info`.
+        source = {k: np.array(info[k]) for k in keys}
+        for i in np.flatnonzero(terminated | truncated):
+            for k in keys:
+                source[k][i] = info["final_info"][i][k]
+        force[step, live] = source["contact_force"][live]
+        contact[step, live] = source["in_contact"][live] > 0.5
+        done = (terminated | truncated) & live
+        progress_at_end[done] = source["progress"][done]
+        termination[done] = source["termination"][done]
+        ended |= done
+        if step in frame_steps:
+            frames.append((step * dt, np.array(view["front_rgb"][0]), np.array(view["side_rgb"][0]),
+                           np.array(view["probe_depth"][0])))
+        if progress and (step % 25 == 0 or step == horizon - 1):
+            elapsed = time.perf_counter() - started
+            rate = (step + 1) * num_envs / elapsed
+            sys.stdout.write(f"\r{_bar((step + 1) / horizon)} {step + 1}/{horizon} steps "
+                             f"{rate:8,.0f} env-steps/s")
             sys.stdout.flush()
     elapsed = time.perf_counter() - started
+    if progress:
+        print()
     envs.close()
-    print(f"\r{_bar(1.0)} {steps * args.num_envs / elapsed:12,.0f} env-steps/s "
-          f"({args.num_envs} envs x {steps:,} batch steps in {elapsed:.1f} s)")
+    viewer.close()
+    in_contact = contact.sum()
+    within = (contact & (np.abs(force - 5.0) <= 1.0)).sum()
+    return {
+        "num_envs": num_envs,
+        "horizon": horizon,
+        "dt_s": dt,
+        "seed": seed,
+        "robot": robot,
+        "env_steps_per_s": horizon * num_envs / elapsed,
+        "wall_s": elapsed,
+        "in_contact_share": float(in_contact / contact.size),
+        "within_1n_share_of_contact": float(within / max(in_contact, 1)),
+        "mean_abs_force_error_n": float(np.nanmean(np.abs(force[contact] - 5.0))) if in_contact else None,
+        "sweep_completion": progress_at_end.tolist(),
+        "early_terminations": int((termination > 0).sum()),
+        "_force": force,
+        "_contact": contact,
+        "_frames": frames,
+    }
 
-    single = gym.make_vec(args.env, num_envs=1, vectorization_mode="vector_entry_point",
-                          server=client.name)
-    single.reset(seed=0)
-    one = np.zeros((1, single.action_space.shape[1]), np.float32)
-    samples = []
-    for _ in range(20_000):
-        t = time.perf_counter_ns()
-        single.step(one)
-        samples.append(time.perf_counter_ns() - t)
-    single.close()
-    p50, p99 = np.percentile(np.array(samples) / 1000.0, [50, 99])
-    print(f"single-env step round trip: p50 {p50:.1f} µs, p99 {p99:.1f} µs")
-    return 0
+
+def write_figures(result: dict, out: Path) -> list[Path]:
+    """force.png and frames.png; the paths written."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out.mkdir(parents=True, exist_ok=True)
+    force, contact, dt = result["_force"], result["_contact"], result["dt_s"]
+    t = np.arange(force.shape[0]) * dt
+    fig, ax = plt.subplots(figsize=(8, 4))
+    ax.axhspan(4.0, 6.0, color="tab:green", alpha=0.15, label="target ±1 N")
+    ax.axhline(5.0, color="tab:green", lw=1.5, label="target 5 N")
+    for k in range(force.shape[1]):
+        ax.plot(t, np.where(contact[:, k], force[:, k], np.nan), lw=0.8, alpha=0.8)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("contact force along the probe axis [N]")
+    ax.set_title(f"{ENV_ID}, {force.shape[1]} envs, scripted hybrid force/motion sweep "
+                 f"({result['within_1n_share_of_contact']:.0%} of contact time within ±1 N)",
+                 fontsize=9)
+    ax.set_ylim(0, 10)
+    ax.legend(loc="lower right", fontsize=8)
+    fig.tight_layout()
+    force_png = out / "force.png"
+    fig.savefig(force_png, dpi=120)
+    plt.close(fig)
+
+    frames = result["_frames"]
+    fig, axes = plt.subplots(3, len(frames), figsize=(2.4 * len(frames), 7.4))
+    for k, (time_s, front, side, depth) in enumerate(frames):
+        axes[0, k].imshow(front)
+        axes[0, k].set_title(f"front, t = {time_s:.2f} s", fontsize=8)
+        axes[1, k].imshow(side)
+        axes[1, k].set_title("side", fontsize=8)
+        axes[2, k].imshow(depth, cmap="viridis_r", vmin=0.0, vmax=0.2)
+        axes[2, k].set_title("probe camera, depth 0-0.2 m", fontsize=8)
+        for a in axes[:, k]:
+            a.axis("off")
+    fig.tight_layout()
+    frames_png = out / "frames.png"
+    fig.savefig(frames_png, dpi=120)
+    plt.close(fig)
+    return [force_png, frames_png]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="echogym demo", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--num-envs", type=int, default=8, help="parallel envs (default %(default)s)")
+    parser.add_argument("--horizon", type=int, default=2500,
+                        help="steps at 500 Hz control (default %(default)s = 5 s, 10 cm of sweep)")
+    parser.add_argument("--robot", choices=["panda", "ur5e"], default="panda")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--camera-size", type=int, default=64, help="camera width/height [px]")
+    parser.add_argument("--out", type=Path, default=Path("demo-output"), help="output folder")
+    parser.add_argument("--server", default=None,
+                        help="server name (default $ECHOGYM_SERVER or 'default'; started if absent)")
+    args = parser.parse_args(argv)
+
+    print(f"echogym {echogym.__version__}: {ENV_ID} x {args.num_envs}, {args.robot}, "
+          f"hybrid force/motion, scripted sweep, {args.horizon} steps at 500 Hz")
+    result = run(args.num_envs, args.horizon, args.seed, args.server, args.robot, args.camera_size)
+    paths = write_figures(result, args.out)
+    summary = {k: v for k, v in result.items() if not k.startswith("_")}
+    (args.out / "summary.json").write_text(json.dumps(summary, indent=2))
+    ok = summary["within_1n_share_of_contact"] >= 0.8
+    completion = np.array(summary["sweep_completion"])
+    print(f"force tracking: {summary['within_1n_share_of_contact']:.1%} of in-contact time within "
+          f"±1 N of 5 N (target ≥ 80%: {'met' if ok else 'MISSED'}); mean |error| "
+          f"{summary['mean_abs_force_error_n']:.2f} N; in contact {summary['in_contact_share']:.0%} "
+          f"of the time")
+    print(f"sweep completion: mean {completion.mean():.0%}, {int((completion >= 1).sum())}/"
+          f"{len(completion)} envs finished the path, {summary['early_terminations']} early "
+          f"terminations")
+    print(f"throughput: {summary['env_steps_per_s']:,.0f} env-steps/s "
+          f"({args.num_envs} envs stepped from Python with the policy in the loop, plus a "
+          f"camera twin; {summary['wall_s']:.1f} s)")
+    print("wrote " + ", ".join(str(p) for p in [*paths, args.out / "summary.json"]))
+    return 0 if ok else 1
 
 
 if __name__ == "__main__":

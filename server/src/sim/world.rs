@@ -218,6 +218,23 @@ impl World {
         self.steps += 1;
     }
 
+    /// Bring the query structures (broad phase, contact pairs) up to date with the
+    /// current poses without advancing time: ray casts and cameras after building or
+    /// teleporting bodies (rapier otherwise refreshes them at the next step).
+    pub fn update_queries(&mut self) {
+        let s = &mut self.sets;
+        CollisionPipeline::new().step(
+            s.params.prediction_distance(),
+            &mut s.islands,
+            &mut s.broad_phase,
+            &mut s.narrow_phase,
+            &mut s.bodies,
+            &mut s.colliders,
+            &(),
+            &(),
+        );
+    }
+
     /// Timestep [s] (as configured; rapier integrates with its f32 rounding).
     pub fn dt(&self) -> f64 {
         self.dt

@@ -117,13 +117,12 @@ impl<T: Task> ArenaEnv<T> {
             &c.ft_sensor,
         );
         self.scene = self.pristine.clone();
-        if let Some(torso) = draw.torso {
-            if Some(&torso) != self.scene.params().torso.as_ref() {
-                // Validated ranges keep the torso valid; a failure keeps the nominal one.
-                if let Err(e) = self.scene.replace_torso(torso) {
-                    tracing::debug!("randomized torso rejected: {e}");
-                }
-            }
+        // Validated ranges keep the torso valid; a failure keeps the nominal one.
+        if let Some(torso) = draw.torso
+            && Some(&torso) != self.scene.params().torso.as_ref()
+            && let Err(e) = self.scene.replace_torso(torso)
+        {
+            tracing::debug!("randomized torso rejected: {e}");
         }
         if let Some(breathing) = draw.breathing {
             let law = self
@@ -161,6 +160,11 @@ impl<T: Task> Env for ArenaEnv<T> {
         if let Some(recorder) = &mut self.recorder {
             let (site, protocol) = self.task.recording_labels();
             recorder.begin(&self.scene, &site, &protocol);
+        }
+        if !self.config.cameras.is_empty() {
+            // Bodies were rebuilt and teleported: let rays see where they are now.
+            self.scene.sync_torso_collider();
+            self.scene.world_mut().update_queries();
         }
         self.write_observation(out);
     }
