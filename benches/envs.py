@@ -1,0 +1,156 @@
+"""`benches/run envs`: echogym's physics envs against robosuite, side by side in one run.
+
+echogym side: a private `echogym serve` pinned to ONE core (`taskset`, one worker thread),
+driven from one Python process (gymnasium vector env over shared memory, random actions
+of ±0.3, same-step autoreset, default randomization and breathing) pinned to the other
+core, so each figure is env-steps/s per server core:
+  (a) UltrasoundScan-v0, Panda, OSC_POSE, 20 Hz control (25 physics steps/step), 8 envs;
+  (b) the same at 500 Hz control (1 physics step/step), batches of 16 envs;
+  (c) (a) plus one 64×64 depth camera per env (`front`);
+  (d) PushCube-v0 at 20 Hz, 8 envs (rigid cube, no torso), for reference.
+robosuite side (benches/envs_robosuite.py in benches/.venv-peers, one process, one core):
+`Lift` Panda OSC_POSE at 20 Hz and UR5e OSC_POSE at 500 Hz.
+Each figure is the median of `--repeats` runs of `--seconds`. Prints a markdown table,
+writes benches/results/envs.{md,json}, and ends with one `RESULT key=value ...` line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+import echogym  # noqa: F401  (registers the envs)
+from bench_server import BenchServer, machine_description
+from echogym.gym_vector import EchoVectorEnv
+
+TARGETS = {"scan_20hz": 400.0, "scan_500hz_batch16": 8000.0, "scan_20hz_depth64": 200.0}
+SERVER_CPU, CLIENT_CPU = 1, 0
+
+WORKLOADS = {
+    "scan_20hz": ("echogym/UltrasoundScan-v0", 8, {"controller": {"control_freq": 20.0}}),
+    "scan_500hz_batch16": ("echogym/UltrasoundScan-v0", 16, {}),
+    "scan_20hz_depth64": (
+        "echogym/UltrasoundScan-v0",
+        8,
+        {"controller": {"control_freq": 20.0},
+         "cameras": [{"name": "front", "width": 64, "height": 64, "rgb": False}]},
+    ),
+    "push_cube_20hz": ("echogym/PushCube-v0", 8, {}),
+}
+
+
+def pin_process(pid: int, cpu: int) -> None:
+    """Pin every thread of a running process to `cpu` (threads started before do not
+    inherit a later affinity change)."""
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        os.sched_setaffinity(int(tid), {cpu})
+
+
+def env_steps_per_s(server: str, env_id: str, num_envs: int, config: dict, seconds: float) -> float:
+    """Step a batch with random actions for `seconds`; env-steps/s."""
+    envs = EchoVectorEnv(env_id, num_envs, server=server, **config)
+    rng = np.random.default_rng(0)
+    actions = [rng.uniform(-0.3, 0.3, envs.action_space.shape).astype(np.float32) for _ in range(16)]
+    envs.reset(seed=0)
+    for k in range(5):
+        envs.step(actions[k % 16])
+    steps, started = 0, time.perf_counter()
+    while time.perf_counter() - started < seconds:
+        envs.step(actions[steps % 16])
+        steps += 1
+    elapsed = time.perf_counter() - started
+    envs.close()
+    return steps * num_envs / elapsed
+
+
+def robosuite(seconds: float, repeats: int) -> dict | None:
+    """Run the robosuite side in its own virtualenv; None when unavailable."""
+    python = os.path.join(os.path.dirname(__file__), ".venv-peers", "bin", "python")
+    if not os.path.exists(python):
+        return None
+    out = subprocess.run(
+        [python, os.path.join(os.path.dirname(__file__), "envs_robosuite.py"),
+         "--seconds", str(seconds), "--repeats", str(repeats)],
+        capture_output=True, text=True, check=True,
+    )
+    return json.loads(out.stdout)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=3.0)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--no-peers", action="store_true", help="skip robosuite")
+    args = parser.parse_args()
+    os.sched_setaffinity(0, {CLIENT_CPU})
+
+    runs: dict[str, list[float]] = {}
+    with BenchServer("envs-bench", "--threads", "1") as server:
+        pin_process(server.process.pid, SERVER_CPU)
+        for name, (env_id, n, config) in WORKLOADS.items():
+            runs[name] = []
+            for _ in range(args.repeats):
+                runs[name].append(env_steps_per_s(server.name, env_id, n, config, args.seconds))
+                print(f"{name}: {runs[name][-1]:,.0f} env-steps/s", file=sys.stderr)
+    os.sched_setaffinity(0, set(range(os.cpu_count() or 1)))
+    peers = None if args.no_peers else robosuite(args.seconds, args.repeats)
+
+    med = {k: statistics.median(v) for k, v in runs.items()}
+    rows = [
+        ("UltrasoundScan-v0 Panda OSC_POSE 20 Hz, 8 envs, no images", "scan_20hz"),
+        ("UltrasoundScan-v0 Panda OSC_POSE 500 Hz, batch 16", "scan_500hz_batch16"),
+        ("UltrasoundScan-v0 20 Hz + one 64×64 depth image", "scan_20hz_depth64"),
+        ("PushCube-v0 Panda OSC_POSE 20 Hz, 8 envs", "push_cube_20hz"),
+    ]
+    lines = [
+        f"Machine: {machine_description()}. echogym server pinned to 1 core (1 worker thread), "
+        f"client on another; median of {args.repeats} × {args.seconds:g} s.",
+        "",
+        "| workload | env-steps/s per core | runs | target |",
+        "|---|---:|---|---:|",
+    ]
+    for label, key in rows:
+        target = TARGETS.get(key)
+        verdict = "" if target is None else f"≥ {target:,.0f} ({'met' if med[key] >= target else 'MISSED'})"
+        lines.append(f"| {label} | {med[key]:,.0f} | {', '.join(f'{r:,.0f}' for r in runs[key])} | {verdict} |")
+    result = {"echogym": {k: {"median": med[k], "runs": v} for k, v in runs.items()}, "robosuite": peers}
+    if peers:
+        lift20 = peers["lift_panda_osc_20hz"]["median"]
+        ur500 = peers["lift_ur5e_osc_500hz"]["median"]
+        lines += [
+            f"| robosuite {peers['robosuite_version']} Lift Panda OSC_POSE 20 Hz (MuJoCo "
+            f"{peers['mujoco_version']}, 1 env) | {lift20:,.0f} | "
+            f"{', '.join(f'{r:,.0f}' for r in peers['lift_panda_osc_20hz']['runs'])} | |",
+            f"| robosuite Lift UR5e OSC_POSE 500 Hz (1 env) | {ur500:,.0f} | "
+            f"{', '.join(f'{r:,.0f}' for r in peers['lift_ur5e_osc_500hz']['runs'])} | |",
+            "",
+            f"Ratios (same run): scan 20 Hz / Lift 20 Hz = {med['scan_20hz'] / lift20:.1f}× "
+            f"(target ≥ 5×); scan 500 Hz batch 16 / Lift UR5e 500 Hz = "
+            f"{med['scan_500hz_batch16'] / ur500:.1f}×. robosuite reset (hard) "
+            f"{peers['lift_reset_ms']['median']:.0f} ms.",
+        ]
+        result["ratio_scan20_vs_lift20"] = med["scan_20hz"] / lift20
+        result["ratio_scan500_vs_lift_ur5e500"] = med["scan_500hz_batch16"] / ur500
+    table = "\n".join(lines)
+    print(table)
+    os.makedirs("benches/results", exist_ok=True)
+    with open("benches/results/envs.md", "w") as f:
+        f.write(table + "\n")
+    with open("benches/results/envs.json", "w") as f:
+        json.dump(result, f, indent=2)
+    kv = " ".join(f"{k}={v:.0f}" for k, v in med.items())
+    if peers:
+        kv += f" ratio_vs_lift={result['ratio_scan20_vs_lift20']:.2f}"
+    print(f"RESULT {kv}")
+
+
+if __name__ == "__main__":
+    main()
