@@ -138,3 +138,15 @@ def test_calibration_press_records_a_dataset(server, tmp_path):
     header, *rows = csv.read_text().splitlines()
     assert header.split(",")[:7] == ["t", "px", "py", "pz", "fx", "fy", "fz"]
     assert len(rows) >= steps
+
+
+def test_rgb_array_render_mode_returns_the_camera_image(server):
+    env = gym.make("echogym/PushCube-v0", render_mode="rgb_array",
+                   cameras=[{"name": "bird", "width": 48, "height": 32}])
+    env.reset(seed=0)
+    frame = env.render()
+    assert frame.shape == (32, 48, 3) and frame.dtype == np.uint8
+    env.close()
+    with pytest.raises(ValueError, match="camera"):
+        gym.make("echogym/PushCube-v0", render_mode="rgb_array")
+    assert server.status()["leases"] == []

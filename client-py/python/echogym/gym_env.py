@@ -24,11 +24,12 @@ class EchoEnv(gym.Env):
         env_id: Versioned echogym id, e.g. ``"echogym/Null-v0"``.
         server: Server name (default ``$ECHOGYM_SERVER`` or ``"default"``).
         autostart: Start a private server if none is running (default true).
-        render_mode: Not supported yet; must be ``None``.
+        render_mode: ``None`` or ``"rgb_array"`` (then :meth:`render` returns the first
+            configured camera's RGB image; configure one with ``cameras=[...]``).
         **config: Env config; unknown keys raise :class:`echogym.InvalidConfigError`.
     """
 
-    metadata: dict[str, Any] = {"render_modes": []}
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"]}
 
     def __init__(
         self,
@@ -39,12 +40,18 @@ class EchoEnv(gym.Env):
         render_mode: str | None = None,
         **config: Any,
     ) -> None:
-        if render_mode is not None:
+        if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode {render_mode!r} is not supported by {env_id}")
-        self.render_mode = None
+        self.render_mode = render_mode
         self._client = connect(server, autostart=autostart)
         self._lease = self._client.attach(env_id, 1, config, "disabled")
         self.echo_spec: dict[str, Any] = json.loads(self._lease.spec_json)
+        rgb = [f["name"] for f in self.echo_spec["observation"] if f["name"].endswith("_rgb")]
+        if render_mode == "rgb_array" and not rgb:
+            self._lease.close()
+            raise ValueError(f"render_mode 'rgb_array' needs a camera with rgb: pass cameras=[{{'name': 'front'}}]")
+        self._render_field = rgb[0] if rgb else None
+        self._last_obs: Any = None
         self.observation_space = echo_spaces.observation_space(self.echo_spec)
         self.action_space = echo_spaces.action_space(self.echo_spec)
         self._action_shape = (1, self.echo_spec["action"]["size"])
@@ -62,19 +69,27 @@ class EchoEnv(gym.Env):
         """Start a new episode; ``seed`` reseeds the server-side env."""
         super().reset(seed=seed)
         fields, _, _, _, info, _, _ = self._lease.reset(None, None if seed is None else [seed])
-        return self._obs(fields), self._info(info)
+        self._last_obs = self._obs(fields)
+        return self._last_obs, self._info(info)
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         """Advance one step; ``action`` must be a float array of the action space's shape."""
         actions = as_actions(action, self._action_shape[1:]).reshape(self._action_shape)
         fields, reward, terminated, truncated, info, _, _ = self._lease.step(actions)
+        self._last_obs = self._obs(fields)
         return (
-            self._obs(fields),
+            self._last_obs,
             float(reward[0]),
             bool(terminated[0]),
             bool(truncated[0]),
             self._info(info),
         )
+
+    def render(self) -> np.ndarray | None:
+        """The first camera's RGB image of the last observation (``rgb_array`` mode)."""
+        if self.render_mode != "rgb_array" or self._last_obs is None:
+            return None
+        return self._last_obs[self._render_field].copy()
 
     def close(self) -> None:
         """Give the lease back to the server."""
