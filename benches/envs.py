@@ -2,8 +2,9 @@
 
 echogym side: a private `echogym serve` pinned to ONE core (`taskset`, one worker thread),
 driven from one Python process (gymnasium vector env over shared memory, random actions
-of ±0.3, same-step autoreset, default randomization and breathing) pinned to the other
-core, so each figure is env-steps/s per server core:
+of ±0.3, same-step autoreset, default randomization and breathing, episodes ending only at
+the horizon like robosuite's `ignore_done`) pinned to the other core, so each figure is
+env-steps/s per server core:
   (a) UltrasoundScan-v0, Panda, OSC_POSE, 20 Hz control (25 physics steps/step), 8 envs;
   (b) the same at 500 Hz control (1 physics step/step), batches of 16 envs;
   (c) (a) plus one 64×64 depth camera per env (`front`);
@@ -33,15 +34,23 @@ from echogym.gym_vector import EchoVectorEnv
 TARGETS = {"scan_20hz": 400.0, "scan_500hz_batch16": 8000.0, "scan_20hz_depth64": 200.0}
 SERVER_CPU, CLIENT_CPU = 1, 0
 
+# Episodes end only at the horizon, like robosuite's `ignore_done=True` in the peer run;
+# `scan_20hz_early_termination` shows the cost of the seed's early termination under
+# random actions (an episode ends every few steps, each reset redraws and rebuilds the
+# torso).
+NO_EARLY_END = {"early_termination": False}
 WORKLOADS = {
-    "scan_20hz": ("echogym/UltrasoundScan-v0", 8, {"controller": {"control_freq": 20.0}}),
-    "scan_500hz_batch16": ("echogym/UltrasoundScan-v0", 16, {}),
+    "scan_20hz": ("echogym/UltrasoundScan-v0", 8,
+                  {"controller": {"control_freq": 20.0}, "task": NO_EARLY_END}),
+    "scan_500hz_batch16": ("echogym/UltrasoundScan-v0", 16, {"task": NO_EARLY_END}),
     "scan_20hz_depth64": (
         "echogym/UltrasoundScan-v0",
         8,
-        {"controller": {"control_freq": 20.0},
+        {"controller": {"control_freq": 20.0}, "task": NO_EARLY_END,
          "cameras": [{"name": "front", "width": 64, "height": 64, "rgb": False}]},
     ),
+    "scan_20hz_early_termination": ("echogym/UltrasoundScan-v0", 8,
+                                    {"controller": {"control_freq": 20.0}}),
     "push_cube_20hz": ("echogym/PushCube-v0", 8, {}),
 }
 
@@ -108,6 +117,8 @@ def main() -> None:
         ("UltrasoundScan-v0 Panda OSC_POSE 20 Hz, 8 envs, no images", "scan_20hz"),
         ("UltrasoundScan-v0 Panda OSC_POSE 500 Hz, batch 16", "scan_500hz_batch16"),
         ("UltrasoundScan-v0 20 Hz + one 64×64 depth image", "scan_20hz_depth64"),
+        ("UltrasoundScan-v0 20 Hz with the seed's early termination (resets every few steps)",
+         "scan_20hz_early_termination"),
         ("PushCube-v0 Panda OSC_POSE 20 Hz, 8 envs", "push_cube_20hz"),
     ]
     lines = [

@@ -165,7 +165,8 @@ mod tests {
 
     #[test]
     fn depth_of_the_table_seen_from_above() {
-        let world = World::new(&WorldParams::default());
+        let mut world = World::new(&WorldParams::default());
+        world.update_queries();
         let cam = Camera::look_at(
             [0.0, 0.0, 1.8],
             [0.0, 0.0, 0.0],

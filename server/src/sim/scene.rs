@@ -116,6 +116,7 @@ pub struct Scene {
     probe: ColliderHandle,
     torso: Option<Torso>,
     torso_collider: Option<ColliderHandle>,
+    torso_collider_stale: bool,
     sensor: FtSensor,
     torso_wrench: ContactWrench,
     ideal: [f64; 6],
@@ -188,6 +189,7 @@ impl Scene {
             probe,
             torso,
             torso_collider,
+            torso_collider_stale: false,
             sensor,
             torso_wrench: ContactWrench::default(),
             ideal: [0.0; 6],
@@ -330,9 +332,19 @@ impl Scene {
         self.in_contact = w.in_contact() || rigid_f.iter().any(|v| v.abs() > 1e-9);
     }
 
-    /// Move the torso's rapier collider (ray casts, cameras) to the current skin; with
+    /// Move the torso's rapier collider (ray casts, cameras) to the current skin, building
+    /// it first if the torso was replaced by one of another shape; with
     /// `torso_collider_sync` this happens every step before rapier's (≈ 25 µs).
     pub fn sync_torso_collider(&mut self) {
+        if self.torso_collider_stale {
+            self.torso_collider_stale = false;
+            if let Some(torso) = &self.torso {
+                match torso_collider(&mut self.world, torso) {
+                    Ok(handle) => self.torso_collider = Some(handle),
+                    Err(e) => tracing::debug!("torso collider not rebuilt: {e}"),
+                }
+            }
+        }
         let (Some(torso), Some(handle)) = (&self.torso, self.torso_collider) else {
             return;
         };
@@ -345,7 +357,8 @@ impl Scene {
         }
     }
 
-    /// The torso's rapier collider, if any.
+    /// The torso's rapier collider, if any (`None` after a reshaping
+    /// [`Scene::replace_torso`] until [`Scene::sync_torso_collider`]).
     pub fn torso_collider(&self) -> Option<ColliderHandle> {
         self.torso_collider
     }
@@ -366,7 +379,9 @@ impl Scene {
     }
 
     /// Replace the torso by one built from `params` at rest (laws other than the
-    /// spring-damper are dropped: add them again). Keeps the ray-cast collider in step.
+    /// spring-damper are dropped: add them again). A collider of another shape is
+    /// rebuilt lazily by the next [`Scene::sync_torso_collider`] (cameras call it), so
+    /// envs without cameras do not pay for the mesh.
     pub fn replace_torso(&mut self, params: TorsoParams) -> Result<(), SceneError> {
         let torso = Torso::new(params.clone(), self.params.probe.face)?;
         let same_mesh = self.torso.as_ref().is_some_and(|t| {
@@ -394,8 +409,7 @@ impl Scene {
                     );
                 }
             }
-            let torso = self.torso.as_ref().expect("just set");
-            self.torso_collider = Some(torso_collider(&mut self.world, torso)?);
+            self.torso_collider_stale = true;
         }
         Ok(())
     }

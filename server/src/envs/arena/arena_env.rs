@@ -83,6 +83,9 @@ impl<T: Task> ArenaEnv<T> {
     pub fn new(config: ArenaConfig<T::Config>) -> Result<Self, String> {
         let mut scene = Scene::new(config.scene_params()).map_err(|e| e.to_string())?;
         let task = T::new(&config, &mut scene);
+        // Build the broad phase once here: every reset clones this scene, and an empty
+        // broad phase would be rebuilt from scratch at each episode's first step.
+        scene.world_mut().update_queries();
         let controller = ArmController::new(config.controller.clone(), &scene);
         let physics_steps = config.controller.physics_steps_per_action(scene.dt());
         let recorder = config

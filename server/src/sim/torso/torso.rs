@@ -519,7 +519,7 @@ impl Torso {
             &system,
             &rhs,
             &mut u,
-            1e-12,
+            1e-9,
             10_000,
             &mut Workspace::default(),
         );
