@@ -1,4 +1,4 @@
-//! The `echogym` command line: `serve`, `status`, `stop`, `envs`.
+//! The `echogym` command line: `serve`, `status`, `stop`, `envs`, `calibrate`.
 //!
 //! Shared by the Rust binary and the Python console script (which calls
 //! [`main_with_args`] through the native module), so both behave identically.
@@ -42,6 +42,46 @@ enum Command {
     },
     /// List the registered env ids.
     Envs,
+    /// Calibrate the simulator against recordings: locate the mismatch, name the physics
+    /// left out, model it, show the fit improve (`calibrate synth` makes test datasets).
+    #[command(args_conflicts_with_subcommands = true)]
+    Calibrate(CalibrateArgs),
+}
+
+#[derive(Debug, Args)]
+struct CalibrateArgs {
+    #[command(subcommand)]
+    synth: Option<CalibrateCommand>,
+    /// Dataset folder (`echogym-recordings/1`: dataset.json + one CSV per recording).
+    dataset: Option<PathBuf>,
+    /// Output folder (report.json, report.md, replay/, calibrated.toml, plots).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Seed of the train/held-out split.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+#[derive(Debug, Subcommand)]
+enum CalibrateCommand {
+    /// Generate a dataset with concealed effects (ground truth in OUT/truth.json, the
+    /// dataset in OUT/dataset).
+    Synth {
+        /// Effect to conceal (repeatable): nonlinear_stiffness, viscoelastic_relaxation,
+        /// breathing_motion, tissue_inertia, sensor_bias, sensor_delay,
+        /// site_heterogeneity. None: a dataset without hidden effects.
+        #[arg(long = "effect")]
+        effects: Vec<String>,
+        /// Generator seed.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
+    },
 }
 
 /// Which server to talk to.
@@ -141,6 +181,7 @@ pub fn main_with_args(args: impl IntoIterator<Item = OsString>) -> u8 {
             }
             Ok(())
         }
+        Command::Calibrate(args) => calibrate(args),
     };
     match result {
         Ok(()) => 0,
@@ -149,6 +190,46 @@ pub fn main_with_args(args: impl IntoIterator<Item = OsString>) -> u8 {
             1
         }
     }
+}
+
+fn calibrate(args: CalibrateArgs) -> Result<(), String> {
+    use crate::calibrate::{CalibrateOptions, synth};
+    if let Some(CalibrateCommand::Synth { effects, seed, out }) = args.synth {
+        let truth = synth::generate(&effects, seed, &out).map_err(|e| e.to_string())?;
+        println!(
+            "wrote {} ({} recordings; truth in {})",
+            out.join("dataset").display(),
+            truth.recordings.len(),
+            out.join("truth.json").display()
+        );
+        return Ok(());
+    }
+    let (Some(dataset), Some(out)) = (args.dataset, args.out) else {
+        return Err("usage: echogym calibrate DATASET_DIR --out OUT_DIR [--seed N]".into());
+    };
+    let started = std::time::Instant::now();
+    let outcome = crate::calibrate::calibrate(&CalibrateOptions {
+        dataset,
+        out: out.clone(),
+        seed: args.seed,
+        progress: !args.quiet,
+    })
+    .map_err(|e| e.to_string())?;
+    let names: Vec<&str> = outcome.accepted.iter().map(|a| a.name).collect();
+    println!(
+        "effects found: {}",
+        if names.is_empty() {
+            "none".to_owned()
+        } else {
+            names.join(", ")
+        }
+    );
+    println!(
+        "report: {} ({:.0} s)",
+        out.join("report.md").display(),
+        started.elapsed().as_secs_f64()
+    );
+    Ok(())
 }
 
 fn serve(args: &ServeArgs) -> Result<(), String> {

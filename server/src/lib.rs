@@ -5,6 +5,7 @@
 //! extension and by the end-to-end tests); it shares only the wire contract
 //! (`echogym-protocol`) and the service builders with the server.
 
+pub mod calibrate;
 pub mod cli;
 pub mod client;
 pub mod config;

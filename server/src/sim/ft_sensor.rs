@@ -27,6 +27,8 @@ pub struct FtSensorParams {
     /// Subtract the tool's weight (a tared sensor). Default false: the weight is read,
     /// like an untared sensor.
     pub compensate_tool_weight: bool,
+    /// Transport delay of the reading [s] (rounded to whole timesteps). Default 0.
+    pub delay_s: f64,
 }
 
 impl Default for FtSensorParams {
@@ -37,6 +39,7 @@ impl Default for FtSensorParams {
             torque_noise: 0.0,
             low_pass_hz: 0.0,
             compensate_tool_weight: false,
+            delay_s: 0.0,
         }
     }
 }
@@ -47,6 +50,7 @@ pub struct FtSensor {
     params: FtSensorParams,
     rng: Pcg64Mcg,
     filtered: Option<[f64; 6]>,
+    history: std::collections::VecDeque<[f64; 6]>,
 }
 
 impl FtSensor {
@@ -56,6 +60,7 @@ impl FtSensor {
             params,
             rng: Pcg64Mcg::seed_from_u64(seed),
             filtered: None,
+            history: std::collections::VecDeque::new(),
         }
     }
 
@@ -68,11 +73,17 @@ impl FtSensor {
     pub fn reset(&mut self, seed: u64) {
         self.rng = Pcg64Mcg::seed_from_u64(seed);
         self.filtered = None;
+        self.history.clear();
     }
 
     /// Turn an ideal reading (sensor frame) into what the sensor reports after `dt`.
     pub fn measure(&mut self, ideal: [f64; 6], dt: f64) -> [f64; 6] {
-        let mut out = ideal;
+        let lag = (self.params.delay_s / dt).round() as usize;
+        self.history.push_back(ideal);
+        while self.history.len() > lag + 1 {
+            self.history.pop_front();
+        }
+        let mut out = *self.history.front().expect("just pushed");
         for (i, v) in out.iter_mut().enumerate() {
             *v += self.params.bias[i];
             let std = if i < 3 {

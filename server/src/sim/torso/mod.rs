@@ -19,6 +19,7 @@ mod layout;
 mod params;
 mod skin;
 mod solver;
+mod tissue_laws;
 #[allow(clippy::module_inception)]
 mod torso;
 
@@ -27,6 +28,7 @@ pub use contact::{ContactWrench, ProbeFace, ProbeKinematics};
 pub(crate) use contact::{add, cross, scale, sub};
 pub use law::{LawContext, LawTerms, LinearSpringDamper, ParticleLaw};
 pub use layout::ShellLayout;
-pub use params::{TorsoParamError, TorsoParams};
+pub use params::{SiteStiffness, TorsoParamError, TorsoParams};
 pub use skin::Skin;
+pub use tissue_laws::{MaxwellBranch, POWER_REFERENCE_DEPTH, PowerSpring, Relaxation};
 pub use torso::Torso;

@@ -67,6 +67,32 @@ pub struct TorsoParams {
     pub contact_damping: f64,
     /// Probe–skin Coulomb friction coefficient. Default 0.1 (gel-coupled skin).
     pub friction: f64,
+    /// Exponent of the particle springs (1: linear; > 1: stiffening tissue, see
+    /// [`super::PowerSpring`]). Default 1.
+    pub exponent: f64,
+    /// Viscoelastic relaxation: a Maxwell branch per particle ([`super::MaxwellBranch`]).
+    /// Default none.
+    pub relaxation: Option<super::Relaxation>,
+    /// Tissue mass moving with the probe while in contact [kg]: the skin pushes back
+    /// `−m·a` along the probe's motion. Default 0 (the particles' own mass only).
+    pub moving_mass: f64,
+    /// Local stiffness scales around points of the top (e.g. a stiffer site found by
+    /// calibration): particle springs within ≈ 3 cm of `xy` are scaled towards `scale`
+    /// (Gaussian weight, σ = 2 cm). Default none.
+    pub stiffness_sites: Vec<SiteStiffness>,
+}
+
+/// A local stiffness scale on the torso's top.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SiteStiffness {
+    /// Site name (for reports).
+    #[serde(default)]
+    pub name: String,
+    /// World xy of the site [m].
+    pub xy: [f64; 2],
+    /// Stiffness scale at the site (1: unchanged).
+    pub scale: f64,
 }
 
 impl Default for TorsoParams {
@@ -85,6 +111,10 @@ impl Default for TorsoParams {
             contact_stiffness: 2e8,
             contact_damping: 2e5,
             friction: 0.1,
+            exponent: 1.0,
+            relaxation: None,
+            moving_mass: 0.0,
+            stiffness_sites: Vec::new(),
         }
     }
 }
@@ -180,12 +210,56 @@ impl TorsoParams {
             "in [0, 2]",
             self.friction,
         )?;
+        check(
+            "exponent",
+            (0.5..=4.0).contains(&self.exponent),
+            "in [0.5, 4]",
+            self.exponent,
+        )?;
+        if let Some(r) = &self.relaxation {
+            check(
+                "relaxation.ratio",
+                (0.0..=10.0).contains(&r.ratio),
+                "in [0, 10]",
+                r.ratio,
+            )?;
+            check(
+                "relaxation.tau_s",
+                r.tau_s > 1e-3 && r.tau_s <= 1e3,
+                "in (0.001, 1000] s",
+                r.tau_s,
+            )?;
+        }
+        check(
+            "moving_mass",
+            (0.0..=20.0).contains(&self.moving_mass),
+            "in [0, 20] kg",
+            self.moving_mass,
+        )?;
+        for site in &self.stiffness_sites {
+            check(
+                "stiffness_sites.scale",
+                site.scale > 0.05 && site.scale <= 20.0,
+                "in (0.05, 20]",
+                site.scale,
+            )?;
+        }
         Ok(())
     }
 
     /// World z of the top surface at rest [m].
     pub fn top_z(&self) -> f64 {
         self.bottom_z + self.size[2]
+    }
+
+    /// Stiffness scale of the particle at `xy` from `stiffness_sites`.
+    pub fn stiffness_scale(&self, xy: [f64; 2]) -> f64 {
+        let mut scale = 1.0;
+        for site in &self.stiffness_sites {
+            let d2 = (xy[0] - site.xy[0]).powi(2) + (xy[1] - site.xy[1]).powi(2);
+            scale += (site.scale - 1.0) * (-d2 / (2.0 * 0.02 * 0.02)).exp();
+        }
+        scale.max(0.05)
     }
 
     /// Winkler modulus κ = density · height · stiffness [N/m³].

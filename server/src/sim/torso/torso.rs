@@ -6,6 +6,7 @@ use super::layout::ShellLayout;
 use super::params::{TorsoParamError, TorsoParams};
 use super::skin::Skin;
 use super::solver::{ContactRow, System, Workspace, conjugate_gradient};
+use super::tissue_laws::{MaxwellBranch, PowerSpring};
 
 /// Relative residual at which the implicit solve stops.
 const CG_TOLERANCE: f64 = 1e-6;
@@ -47,6 +48,7 @@ pub struct Torso {
     samples: Vec<Sample>,
     ws: Workspace,
     last_iterations: usize,
+    previous_probe_velocity: Option<[f64; 3]>,
 }
 
 impl Torso {
@@ -67,10 +69,29 @@ impl Torso {
         );
         let column = params.density * params.size[2];
         let mass: Vec<f64> = layout.area.iter().map(|a| column * a).collect();
+        let spring: Vec<f64> = mass
+            .iter()
+            .zip(&layout.rest)
+            .map(|(m, p)| m * params.stiffness * params.stiffness_scale([p[0], p[1]]))
+            .collect();
         let law = LinearSpringDamper {
-            stiffness: mass.iter().map(|m| m * params.stiffness).collect(),
+            stiffness: spring.clone(),
             damping: mass.iter().map(|m| m * params.damping).collect(),
         };
+        let mut laws: Vec<Box<dyn ParticleLaw>> = vec![Box::new(law)];
+        if (params.exponent - 1.0).abs() > 1e-12 {
+            laws.push(Box::new(PowerSpring {
+                stiffness: spring.clone(),
+                exponent: params.exponent,
+            }));
+        }
+        if let Some(r) = &params.relaxation {
+            laws.push(Box::new(MaxwellBranch {
+                stiffness: spring.iter().map(|k| k * r.ratio).collect(),
+                tau: r.tau_s,
+                x: vec![0.0; spring.len()],
+            }));
+        }
         let kappa = params.winkler_modulus();
         let edge_k = kappa * params.smoothing_length.powi(2);
         let edge_c = edge_k * params.coupling_damping * params.damping / params.stiffness;
@@ -84,7 +105,8 @@ impl Torso {
             mass,
             edge_k,
             edge_c,
-            laws: vec![Box::new(law)],
+            laws,
+            previous_probe_velocity: None,
             u: vec![0.0; n],
             v: vec![0.0; n],
             t: 0.0,
@@ -293,7 +315,8 @@ impl Torso {
                 break;
             }
         }
-        let wrench = probe.map_or_else(ContactWrench::default, |p| self.wrench(dt, p));
+        let mut wrench = probe.map_or_else(ContactWrench::default, |p| self.wrench(dt, p));
+        self.add_moving_mass(dt, probe, &mut wrench);
         for i in 0..self.u.len() {
             self.u[i] += dt * self.scratch[i];
         }
@@ -478,6 +501,27 @@ impl Torso {
             out.samples_in_contact += 1;
         }
         out
+    }
+
+    /// Tissue moving with the probe while in contact pushes back `−m·a` (`moving_mass`).
+    fn add_moving_mass(
+        &mut self,
+        dt: f64,
+        probe: Option<&ProbeKinematics>,
+        wrench: &mut ContactWrench,
+    ) {
+        let m = self.params.moving_mass;
+        let Some(probe) = probe.filter(|_| m > 0.0) else {
+            return;
+        };
+        let v = probe.linear_velocity;
+        if let (Some(previous), true) = (self.previous_probe_velocity, wrench.in_contact()) {
+            let a = scale(sub(v, previous), 1.0 / dt);
+            let f = scale(a, -m);
+            wrench.force = add(wrench.force, f);
+            wrench.torque = add(wrench.torque, cross(sub(probe.tip, probe.com), f));
+        }
+        self.previous_probe_velocity = Some(v);
     }
 
     /// Static displacements [m] of the free torso (no probe) under per-particle normal

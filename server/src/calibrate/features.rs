@@ -1,0 +1,123 @@
+//! Per-sample quantities the mismatch locator and the effect signatures work on: the
+//! measured force, the baseline's prediction and residual, contact, depth below the
+//! fitted surface, probe velocity and acceleration, time, site and recording.
+
+use crate::recordings::Recording;
+
+use super::replay::Prediction;
+
+/// One recording's samples, aligned.
+#[derive(Debug, Clone)]
+pub struct Series {
+    /// Recording index in the dataset.
+    pub index: usize,
+    /// File name.
+    pub file: String,
+    /// Site name.
+    pub site: String,
+    /// Protocol name as stated in the dataset.
+    pub protocol: String,
+    /// Time [s].
+    pub t: Vec<f64>,
+    /// Measured force, world z [N].
+    pub measured: Vec<f64>,
+    /// Baseline prediction [N].
+    pub predicted: Vec<f64>,
+    /// Residual `measured − predicted` [N].
+    pub residual: Vec<f64>,
+    /// Probe touching the skin in the baseline replay.
+    pub contact: Vec<bool>,
+    /// Depth below the fitted rest surface [m] (negative above).
+    pub depth: Vec<f64>,
+    /// Probe vertical velocity [m/s] (z up).
+    pub vz: Vec<f64>,
+    /// Probe lateral speed [m/s].
+    pub lateral_speed: Vec<f64>,
+    /// Probe vertical acceleration [m/s²] (smoothed over ±10 ms).
+    pub az: Vec<f64>,
+    /// Sample period [s].
+    pub dt: f64,
+}
+
+impl Series {
+    /// Build from a recording and the baseline's prediction of it.
+    pub fn new(
+        index: usize,
+        file: &str,
+        site: &str,
+        protocol: &str,
+        rec: &Recording,
+        prediction: &Prediction,
+    ) -> Self {
+        let n = rec.len();
+        let dt = (rec.t[n - 1] - rec.t[0]) / (n - 1).max(1) as f64;
+        let half = ((0.01 / dt).round() as usize).max(1);
+        let az = (0..n)
+            .map(|i| {
+                let a = i.saturating_sub(half);
+                let b = (i + half).min(n - 1);
+                (rec.v[b][2] - rec.v[a][2]) / (rec.t[b] - rec.t[a]).max(1e-9)
+            })
+            .collect();
+        let measured: Vec<f64> = rec.f.iter().map(|f| f[2]).collect();
+        let residual = measured
+            .iter()
+            .zip(&prediction.fz)
+            .map(|(m, p)| m - p)
+            .collect();
+        Self {
+            index,
+            file: file.to_owned(),
+            site: site.to_owned(),
+            protocol: protocol.to_owned(),
+            t: rec.t.clone(),
+            measured,
+            predicted: prediction.fz.clone(),
+            residual,
+            contact: prediction.contact.clone(),
+            depth: prediction.depth.clone(),
+            vz: rec.v.iter().map(|v| v[2]).collect(),
+            lateral_speed: rec.v.iter().map(|v| v[0].hypot(v[1])).collect(),
+            az,
+            dt,
+        }
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// True without samples.
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+}
+
+/// Root mean square of residuals over several series.
+pub fn rmse(residuals: &[&[f64]]) -> f64 {
+    let (sum, count) = residuals.iter().fold((0.0, 0usize), |(s, c), r| {
+        (s + r.iter().map(|v| v * v).sum::<f64>(), c + r.len())
+    });
+    (sum / count.max(1) as f64).sqrt()
+}
+
+/// Noise floor [N]: robust standard deviation of the force's second differences
+/// (`Var(Δ²n) = 6σ²` for white noise), median over recordings.
+pub fn noise_floor(series: &[Series]) -> f64 {
+    let mut per: Vec<f64> = series
+        .iter()
+        .filter(|s| s.len() > 10)
+        .map(|s| {
+            let mut d: Vec<f64> = s
+                .measured
+                .windows(3)
+                .map(|w| (w[0] - 2.0 * w[1] + w[2]).abs())
+                .collect();
+            d.sort_by(f64::total_cmp);
+            d[d.len() / 2] / 0.6745 / 6f64.sqrt()
+        })
+        .collect();
+    per.sort_by(f64::total_cmp);
+    per.get(per.len() / 2).copied().unwrap_or(0.0)
+}

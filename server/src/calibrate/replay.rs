@@ -1,0 +1,229 @@
+//! Replay: the recorded probe trajectory drives echogym's particle torso (the probe is
+//! kinematic — position and velocity from the recording, upright), and the torso's
+//! contact force on the probe is the prediction, sampled on the recording's time base.
+//!
+//! The torso is the physics issue's `Torso` with its laws (linear spring-damper and, when
+//! the model says so, the power spring, Maxwell branches, breathing, moving mass, local
+//! stiffness), stepped at 2 ms whatever the recording's rate (positions interpolated
+//! linearly). Sensor effects (bias, delay) are applied to the predicted force. Free-air
+//! stretches with the torso at rest are skipped (nothing changes there).
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::recordings::Recording;
+use crate::sim::torso::{
+    Breathing, BreathingParams, ProbeFace, ProbeKinematics, Relaxation, SiteStiffness, Torso,
+    TorsoParams,
+};
+
+/// Simulation step of replays [s].
+pub const REPLAY_DT: f64 = 0.002;
+
+/// Everything a replay's prediction depends on (the calibrated quantities).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Model {
+    /// Seed-term stiffness [1/s²] (see `TorsoParams`).
+    pub stiffness: f64,
+    /// Seed-term damping [1/s].
+    pub damping: f64,
+    /// True surface minus the dataset's nominal surface [m].
+    pub surface_offset: f64,
+    /// Power-spring exponent (1: linear).
+    pub exponent: f64,
+    /// Maxwell branch, if any.
+    pub relaxation: Option<Relaxation>,
+    /// Breathing: frequency [Hz] and amplitude [m]; phases per recording in
+    /// `breathing_phase`.
+    pub breathing: Option<(f64, f64)>,
+    /// Breathing phase at each recording's start [rad], by recording index.
+    pub breathing_phase: Vec<f64>,
+    /// Tissue mass moving with the probe [kg].
+    pub moving_mass: f64,
+    /// Constant force offset of the sensor, world z [N].
+    pub bias: f64,
+    /// Sensor delay [s].
+    pub delay: f64,
+    /// Stiffness scale per site name.
+    pub site_scale: Vec<(String, f64)>,
+}
+
+impl Model {
+    /// The linear baseline.
+    pub fn baseline(stiffness: f64, damping: f64, surface_offset: f64) -> Self {
+        Self {
+            stiffness,
+            damping,
+            surface_offset,
+            exponent: 1.0,
+            relaxation: None,
+            breathing: None,
+            breathing_phase: Vec::new(),
+            moving_mass: 0.0,
+            bias: 0.0,
+            delay: 0.0,
+            site_scale: Vec::new(),
+        }
+    }
+}
+
+/// The scene a dataset describes: where the torso is and what it is.
+#[derive(Debug, Clone)]
+pub struct Setup {
+    /// The torso before calibration (dataset's `torso` overrides on the defaults).
+    pub torso: TorsoParams,
+    /// Nominal surface height [m].
+    pub nominal_surface_z: f64,
+    /// Torso centre [m].
+    pub center_xy: [f64; 2],
+    /// Site name → world xy of the recordings made there (mean position in contact).
+    pub sites: Vec<(String, [f64; 2])>,
+}
+
+impl Setup {
+    /// Torso parameters for `model`.
+    pub fn torso_params(&self, model: &Model) -> TorsoParams {
+        let mut t = self.torso.clone();
+        t.center_xy = self.center_xy;
+        t.bottom_z = self.nominal_surface_z + model.surface_offset - t.size[2];
+        t.stiffness = model.stiffness;
+        t.damping = model.damping;
+        t.exponent = model.exponent;
+        t.relaxation = model.relaxation.clone();
+        t.moving_mass = model.moving_mass;
+        t.stiffness_sites = model
+            .site_scale
+            .iter()
+            .filter_map(|(name, scale)| {
+                self.sites
+                    .iter()
+                    .find(|(n, _)| n == name)
+                    .map(|(_, xy)| SiteStiffness {
+                        name: name.clone(),
+                        xy: *xy,
+                        scale: *scale,
+                    })
+            })
+            .collect();
+        t
+    }
+}
+
+/// One replay's output on the recording's time base.
+#[derive(Debug, Clone, Default)]
+pub struct Prediction {
+    /// Predicted force along world z [N] (pressing > 0), sensor effects included.
+    pub fz: Vec<f64>,
+    /// Whether the probe touched the skin (sensor effects excluded).
+    pub contact: Vec<bool>,
+    /// Depth of the probe below the model's rest surface [m] (negative above).
+    pub depth: Vec<f64>,
+}
+
+/// Linear interpolation of a sampled series at time `t`.
+fn interp3(t_axis: &[f64], values: &[[f64; 3]], t: f64) -> [f64; 3] {
+    let k = t_axis
+        .partition_point(|&x| x <= t)
+        .clamp(1, t_axis.len() - 1);
+    let (t0, t1) = (t_axis[k - 1], t_axis[k]);
+    let w = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+    let (a, b) = (values[k - 1], values[k]);
+    [
+        a[0] + w * (b[0] - a[0]),
+        a[1] + w * (b[1] - a[1]),
+        a[2] + w * (b[2] - a[2]),
+    ]
+}
+
+fn interp(t_axis: &[f64], values: &[f64], t: f64) -> f64 {
+    let k = t_axis
+        .partition_point(|&x| x <= t)
+        .clamp(1, t_axis.len() - 1);
+    let (t0, t1) = (t_axis[k - 1], t_axis[k]);
+    let w = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+    values[k - 1] + w * (values[k] - values[k - 1])
+}
+
+/// Replay recording `index` under `model`.
+pub fn replay(setup: &Setup, model: &Model, recording: &Recording, index: usize) -> Prediction {
+    let params = setup.torso_params(model);
+    let Ok(mut torso) = Torso::new(params.clone(), ProbeFace::default()) else {
+        // Out-of-range candidates predict nothing (the fit sees a large error).
+        return Prediction {
+            fz: vec![0.0; recording.len()],
+            contact: vec![false; recording.len()],
+            depth: vec![0.0; recording.len()],
+        };
+    };
+    let breathing = model.breathing.is_some();
+    if let Some((freq, amplitude)) = model.breathing {
+        let phase = model.breathing_phase.get(index).copied().unwrap_or(0.0);
+        let law = Breathing::new(
+            BreathingParams {
+                rate_bpm: freq * 60.0,
+                amplitude,
+                rate_drift: 0.0,
+                phase,
+            },
+            &torso,
+            0,
+        );
+        if let Ok(law) = law {
+            let u = law.equilibrium();
+            torso.set_state(&u, &vec![0.0; u.len()]);
+            torso.add_law(Box::new(law));
+        }
+    }
+    let top = params.top_z();
+    let t0 = recording.t[0];
+    let t_end = *recording.t.last().expect("recordings have samples");
+    let steps = ((t_end - t0) / REPLAY_DT).ceil() as usize + 1;
+    let mut sim_t = Vec::with_capacity(steps);
+    let mut sim_f = Vec::with_capacity(steps);
+    let mut sim_contact = Vec::with_capacity(steps);
+    let mut at_rest = !breathing;
+    for k in 0..steps {
+        let t = t0 + k as f64 * REPLAY_DT;
+        let p = interp3(&recording.t, &recording.p, t);
+        let v = interp3(&recording.t, &recording.v, t);
+        let clear = p[2] + REPLAY_DT * v[2].min(0.0) > top + 0.002;
+        let (fz, contact) = if clear && at_rest && model.moving_mass == 0.0 {
+            (0.0, false)
+        } else {
+            let probe = ProbeKinematics::upright(p, v);
+            let w = torso.step(REPLAY_DT, Some(&probe));
+            if !breathing {
+                at_rest = !w.in_contact()
+                    && torso.velocities().iter().all(|v| v.abs() < 1e-7)
+                    && torso.displacements().iter().all(|u| u.abs() < 1e-7)
+                    && model.relaxation.is_none();
+            }
+            (w.force[2], w.in_contact())
+        };
+        sim_t.push(t);
+        sim_f.push(fz);
+        sim_contact.push(contact);
+    }
+    let mut out = Prediction::default();
+    for (i, &t) in recording.t.iter().enumerate() {
+        let f = interp(&sim_t, &sim_f, t - model.delay);
+        out.fz.push(f + model.bias);
+        let k = (((t - t0) / REPLAY_DT).round() as usize).min(steps - 1);
+        out.contact.push(sim_contact[k]);
+        out.depth.push(top - recording.p[i][2]);
+    }
+    out
+}
+
+/// Replay every recording in `indices` (in parallel).
+pub fn replay_all(
+    setup: &Setup,
+    model: &Model,
+    recordings: &[Recording],
+    indices: &[usize],
+) -> Vec<Prediction> {
+    indices
+        .par_iter()
+        .map(|&i| replay(setup, model, &recordings[i], i))
+        .collect()
+}

@@ -1,0 +1,415 @@
+//! Outputs of a calibration run (in OUT_DIR): `report.json`
+//! (`echogym-calibration-report/1`), `report.md`, `replay/<recording>.csv`
+//! (`t,fz_measured,fz_baseline,fz_calibrated`), `calibrated.toml` (the scene config of the
+//! calibrated torso, breathing and sensor), and `seed_method.csv` (the points of the
+//! seed's regression, for the plot). The PNG plots are drawn from these files by the
+//! Python package (`echogym calibrate` from the virtualenv draws them).
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use serde::Serialize;
+
+use super::features::rmse;
+use super::replay::Model;
+use super::{CalibrateError, Outcome, io_error};
+use crate::sim::ft_sensor::FtSensorParams;
+use crate::sim::torso::{BreathingParams, TorsoParams};
+
+/// Report schema name.
+pub const SCHEMA: &str = "echogym-calibration-report/1";
+
+/// An accepted effect.
+#[derive(Debug, Clone, Serialize)]
+pub struct Accepted {
+    /// Catalogue name.
+    pub name: &'static str,
+    /// Parameters (from the signature; the refitted values are in `calibrated`).
+    pub params: serde_json::Map<String, serde_json::Value>,
+    /// Why it was accepted.
+    pub evidence: String,
+    /// Held-out RMSE with its signature added [N].
+    pub heldout_rmse_n: f64,
+}
+
+/// A candidate not accepted.
+#[derive(Debug, Clone, Serialize)]
+pub struct Rejected {
+    /// Catalogue name.
+    pub name: &'static str,
+    /// Why.
+    pub why: String,
+}
+
+/// The calibrated scene as TOML sections usable as env config keys.
+#[derive(Debug, Serialize)]
+struct CalibratedScene {
+    torso: TorsoParams,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    breathing: Option<BreathingParams>,
+    ft_sensor: FtSensorParams,
+}
+
+fn rmse_of(outcome: &Outcome, indices: &[usize], calibrated: bool) -> f64 {
+    let rs: Vec<Vec<f64>> = indices
+        .iter()
+        .map(|&i| {
+            let s = &outcome.series[i];
+            if calibrated {
+                s.measured
+                    .iter()
+                    .zip(&outcome.calibrated_fz[i])
+                    .map(|(m, p)| m - p)
+                    .collect()
+            } else {
+                s.residual.clone()
+            }
+        })
+        .collect();
+    let refs: Vec<&[f64]> = rs.iter().map(|r| r.as_slice()).collect();
+    rmse(&refs)
+}
+
+fn model_json(m: &Model) -> serde_json::Value {
+    serde_json::json!({
+        "stiffness": m.stiffness,
+        "damping": m.damping,
+        "surface_offset_m": m.surface_offset,
+        "exponent": m.exponent,
+        "relaxation": m.relaxation,
+        "breathing_freq_hz": m.breathing.map(|b| b.0),
+        "breathing_amplitude_m": m.breathing.map(|b| b.1),
+        "moving_mass_kg": m.moving_mass,
+        "sensor_bias_fz_n": m.bias,
+        "sensor_delay_s": m.delay,
+        "stiffness_scale_by_site": m.site_scale.iter().cloned().collect::<std::collections::BTreeMap<_, _>>(),
+    })
+}
+
+/// Fitted parameters of an accepted effect, from the calibrated model (catalogue keys).
+fn calibrated_params(name: &str, m: &Model, k_site: f64) -> serde_json::Value {
+    match name {
+        "sensor_bias" => serde_json::json!({"fz_n": m.bias}),
+        "sensor_delay" => serde_json::json!({"delay_s": m.delay}),
+        "tissue_inertia" => serde_json::json!({"mass_kg": m.moving_mass}),
+        "nonlinear_stiffness" => serde_json::json!({"exponent": m.exponent}),
+        "viscoelastic_relaxation" => {
+            let r = m
+                .relaxation
+                .clone()
+                .unwrap_or(crate::sim::torso::Relaxation {
+                    ratio: 0.0,
+                    tau_s: 0.0,
+                });
+            serde_json::json!({"tau_s": r.tau_s, "ratio": r.ratio})
+        }
+        "breathing_motion" => {
+            let (f, a) = m.breathing.unwrap_or((0.0, 0.0));
+            serde_json::json!({"freq_hz": f, "amplitude_m": a})
+        }
+        "site_heterogeneity" => {
+            let by: serde_json::Map<String, serde_json::Value> = m
+                .site_scale
+                .iter()
+                .map(|(s, v)| (s.clone(), (v * k_site).into()))
+                .collect();
+            serde_json::json!({"stiffness_by_site": by, "unit": "N/m (static contact stiffness)"})
+        }
+        _ => serde_json::Value::Null,
+    }
+}
+
+/// Write every output into `out`.
+pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
+    std::fs::create_dir_all(out.join("replay")).map_err(io_error(out))?;
+    let files = |idx: &[usize]| -> Vec<String> {
+        idx.iter()
+            .map(|&i| o.dataset.meta.recordings[i].file.clone())
+            .collect()
+    };
+    let before_train = rmse_of(o, &o.train, false);
+    let before_held = rmse_of(o, &o.heldout, false);
+    let after_train = rmse_of(o, &o.train, true);
+    let after_held = rmse_of(o, &o.heldout, true);
+    let k_per = o.k_eff / o.baseline.stiffness;
+    let k_site = o.calibrated.stiffness * k_per;
+    let effects: Vec<serde_json::Value> = o
+        .accepted
+        .iter()
+        .map(|a| {
+            serde_json::json!({
+                "name": a.name,
+                "params": calibrated_params(a.name, &o.calibrated, k_site),
+                "signature_params": a.params,
+                "evidence": a.evidence,
+                "heldout_rmse_n": a.heldout_rmse_n,
+            })
+        })
+        .collect();
+    let report = serde_json::json!({
+        "schema": SCHEMA,
+        "dataset": o.dataset.dir,
+        "split": {
+            "train": files(&o.train),
+            "heldout": files(&o.heldout),
+            "rule": "whole recordings; one held out per site with two or more (seeded)",
+        },
+        "noise_floor_n": o.noise,
+        "baseline": {
+            "params": model_json(&o.baseline),
+            "contact_stiffness_n_per_m": o.k_eff,
+            "rmse_train_n": before_train,
+            "rmse_heldout_n": before_held,
+        },
+        "mismatch": o.mismatch.spans,
+        "mismatch_shares": {
+            "by_recording": o.mismatch.by_recording,
+            "by_phase": o.mismatch.by_phase,
+            "by_depth": o.mismatch.by_depth,
+            "by_velocity": o.mismatch.by_velocity,
+            "by_frequency": o.mismatch.by_frequency,
+        },
+        "effects": effects,
+        "rejected": o.rejected,
+        "calibrated": {
+            "params": model_json(&o.calibrated),
+            "rmse_train_n": after_train,
+            "rmse_heldout_n": after_held,
+        },
+        "improvement": {
+            "heldout_rmse_before_n": before_held,
+            "heldout_rmse_after_n": after_held,
+            "reduction": (before_held - after_held) / before_held.max(1e-12),
+        },
+        "seed_method": o.seed_method,
+    });
+    let path = out.join("report.json");
+    std::fs::write(
+        &path,
+        serde_json::to_string_pretty(&report).expect("serializes"),
+    )
+    .map_err(io_error(&path))?;
+
+    for (i, s) in o.series.iter().enumerate() {
+        let stem = Path::new(&s.file).file_stem().map_or_else(
+            || format!("recording_{i}"),
+            |x| x.to_string_lossy().into_owned(),
+        );
+        let path = out.join("replay").join(format!("{stem}.csv"));
+        let mut text = String::from("t,fz_measured,fz_baseline,fz_calibrated\n");
+        for k in 0..s.len() {
+            let _ = writeln!(
+                text,
+                "{:.6},{:.5},{:.5},{:.5}",
+                s.t[k], s.measured[k], s.predicted[k], o.calibrated_fz[i][k]
+            );
+        }
+        std::fs::write(&path, text).map_err(io_error(&path))?;
+    }
+
+    let path = out.join("seed_method.csv");
+    let mut text = String::from("site,v_over_r,f_over_r\n");
+    for fit in &o.seed_method {
+        for (x, y) in &fit.points {
+            let _ = writeln!(text, "{},{x:.5},{y:.3}", fit.site);
+        }
+    }
+    std::fs::write(&path, text).map_err(io_error(&path))?;
+
+    let m = &o.calibrated;
+    let mut ft = FtSensorParams::default();
+    // World z up; an upright probe's sensor z points down.
+    ft.bias[2] = -m.bias;
+    ft.delay_s = m.delay;
+    let scene = CalibratedScene {
+        torso: o.setup.torso_params(m),
+        breathing: m.breathing.map(|(f, a)| BreathingParams {
+            rate_bpm: f * 60.0,
+            amplitude: a,
+            ..BreathingParams::default()
+        }),
+        ft_sensor: ft,
+    };
+    let path = out.join("calibrated.toml");
+    let body =
+        toml::to_string_pretty(&scene).map_err(|e| CalibrateError::Unusable(e.to_string()))?;
+    let text = format!(
+        "# Calibrated scene written by `echogym calibrate` from {}.\n# Sections map onto env config keys: `torso`, `breathing`, `ft_sensor`\n# (Python: echogym.load_calibration(path) -> dict of keyword arguments).\n\n{body}",
+        o.dataset.dir.display()
+    );
+    std::fs::write(&path, text).map_err(io_error(&path))?;
+
+    let path = out.join("report.md");
+    std::fs::write(
+        &path,
+        markdown(
+            o,
+            before_train,
+            before_held,
+            after_train,
+            after_held,
+            k_site,
+        ),
+    )
+    .map_err(io_error(&path))?;
+    Ok(())
+}
+
+fn effect_sentence(name: &str, m: &Model, k_site: f64) -> String {
+    match name {
+        "sensor_bias" => format!(
+            "the force sensor reads a constant {:+.2} N offset (e.g. uncompensated tool weight); added a sensor bias",
+            m.bias
+        ),
+        "sensor_delay" => format!(
+            "the force lags the motion by ≈ {:.0} ms; added a sensor delay stage",
+            1000.0 * m.delay
+        ),
+        "tissue_inertia" => format!(
+            "tissue of ≈ {:.2} kg moves with the probe (inertial force in fast motion); added a moving mass to the contact",
+            m.moving_mass
+        ),
+        "nonlinear_stiffness" => format!(
+            "the tissue stiffens with depth (force ∝ depth^{:.2}); replaced the linear particle springs with a power law",
+            m.exponent
+        ),
+        "viscoelastic_relaxation" => {
+            let r = m
+                .relaxation
+                .clone()
+                .unwrap_or(crate::sim::torso::Relaxation {
+                    ratio: 0.0,
+                    tau_s: 0.0,
+                });
+            format!(
+                "force relaxes during holds with τ ≈ {:.2} s (branch stiffness {:.0} % of the spring), with memory between pushes; added a Maxwell branch to every particle joint",
+                r.tau_s,
+                100.0 * r.ratio
+            )
+        }
+        "breathing_motion" => {
+            let (f, a) = m.breathing.unwrap_or((0.0, 0.0));
+            format!(
+                "the surface moves periodically at {f:.3} Hz ({:.1} breaths/min, ≈ {:.1} mm); added breathing driving the torso's top",
+                f * 60.0,
+                1000.0 * a
+            )
+        }
+        "site_heterogeneity" => {
+            let parts: Vec<String> = m
+                .site_scale
+                .iter()
+                .map(|(s, v)| format!("{s} {:.0} N/m", v * k_site))
+                .collect();
+            format!(
+                "stiffness differs by site ({}); added local stiffness at the sites",
+                parts.join(", ")
+            )
+        }
+        _ => String::new(),
+    }
+}
+
+fn markdown(o: &Outcome, bt: f64, bh: f64, at: f64, ah: f64, k_site: f64) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# Calibration report\n");
+    let _ = writeln!(
+        s,
+        "Dataset `{}`: {} recordings; trained on {}, held out {} (whole recordings, one per site with several). Noise floor ≈ {:.3} N.\n",
+        o.dataset.dir.display(),
+        o.series.len(),
+        o.train.len(),
+        o.heldout.len(),
+        o.noise
+    );
+    let b = &o.baseline;
+    let _ = writeln!(s, "## Baseline (linear particle torso)\n");
+    let _ = writeln!(
+        s,
+        "Stiffness {:.0} and damping {:.1} (seed terms; contact stiffness {:.0} N/m), surface {:+.2} mm from the nominal height. RMSE train {bt:.3} N, held-out {bh:.3} N.\n",
+        b.stiffness,
+        b.damping,
+        o.k_eff,
+        1000.0 * b.surface_offset
+    );
+    let _ = writeln!(s, "## Where the baseline misses\n");
+    let phases: Vec<String> = o
+        .mismatch
+        .by_phase
+        .iter()
+        .take(4)
+        .map(|p| format!("{} {:.0} %", p.label, 100.0 * p.share))
+        .collect();
+    let bands: Vec<String> = o
+        .mismatch
+        .by_frequency
+        .iter()
+        .filter(|p| p.share > 0.05)
+        .map(|p| format!("{} {:.0} %", p.label, 100.0 * p.share))
+        .collect();
+    let depth: Vec<String> = o
+        .mismatch
+        .by_depth
+        .iter()
+        .take(3)
+        .map(|p| format!("{} {:.0} %", p.label, 100.0 * p.share))
+        .collect();
+    let _ = writeln!(s, "- by phase: {}", phases.join(", "));
+    let _ = writeln!(s, "- by depth: {}", depth.join(", "));
+    let _ = writeln!(s, "- by frequency: {}", bands.join(", "));
+    for span in o.mismatch.spans.iter().take(3) {
+        let _ = writeln!(
+            s,
+            "- {} {:.1}–{:.1} s: {} ({:.0} % of the residual energy)",
+            span.recording,
+            span.t_start,
+            span.t_end,
+            span.description,
+            100.0 * span.share
+        );
+    }
+    let _ = writeln!(s, "\n## Physics the simulator left out\n");
+    if o.accepted.is_empty() {
+        let _ = writeln!(
+            s,
+            "None: no candidate effect reduced the held-out error enough (the baseline explains the recordings up to noise and model error).\n"
+        );
+    }
+    for a in &o.accepted {
+        let _ = writeln!(
+            s,
+            "- **{}**: {}. Evidence: {}.",
+            a.name,
+            effect_sentence(a.name, &o.calibrated, k_site),
+            a.evidence
+        );
+    }
+    if !o.rejected.is_empty() {
+        let _ = writeln!(s, "\nNot accepted:");
+        for r in &o.rejected {
+            let _ = writeln!(s, "- {}: {}", r.name, r.why);
+        }
+    }
+    let _ = writeln!(s, "\n## Fit\n");
+    let _ = writeln!(
+        s,
+        "| | train RMSE | held-out RMSE |\n|---|---:|---:|\n| baseline | {bt:.3} N | {bh:.3} N |\n| calibrated | {at:.3} N | {ah:.3} N |\n"
+    );
+    let _ = writeln!(
+        s,
+        "Held-out RMSE {bh:.2} N → {ah:.2} N ({:.0} % lower). Calibrated scene: `calibrated.toml`.\n",
+        100.0 * (bh - ah) / bh.max(1e-12)
+    );
+    let _ = writeln!(
+        s,
+        "## The seed's method, for comparison\n\n| site | slope b [N·s/m] | intercept k [N/m] | r² | k/b [1/s] |\n|---|---:|---:|---:|---:|"
+    );
+    for f in &o.seed_method {
+        let _ = writeln!(
+            s,
+            "| {} | {:.1} | {:.0} | {:.2} | {:.1} |",
+            f.site, f.slope, f.intercept, f.r2, f.k_over_b
+        );
+    }
+    s
+}

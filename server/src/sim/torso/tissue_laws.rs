@@ -1,0 +1,100 @@
+//! Tissue laws beyond the linear spring-damper, added by [`super::TorsoParams`] keys (the
+//! calibration tool enables them when it finds the effect in recordings):
+//!
+//! - [`PowerSpring`] (`exponent ≠ 1`): stiffening tissue. Each particle's spring force
+//!   becomes `k·u₀·(|u|/u₀)ⁿ` (`u₀` = 10 mm reference depth, so `k` keeps its meaning there)
+//!   instead of `k·|u|`; the law adds the difference to the linear spring.
+//! - [`MaxwellBranch`] (`relaxation`): viscoelastic relaxation. A spring `k_m = ratio·k`
+//!   in series with a dashpot of time constant `τ` per particle: `f = −k_m·(u − x)`,
+//!   `ẋ = (u − x)/τ`. At constant depth the branch's force decays with `τ`; between pushes
+//!   `x` carries memory of the last one.
+
+use serde::{Deserialize, Serialize};
+
+use super::law::{LawContext, LawTerms, ParticleLaw};
+
+/// Reference depth of the power spring [m].
+pub const POWER_REFERENCE_DEPTH: f64 = 0.01;
+
+/// Parameters of the Maxwell branch.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Relaxation {
+    /// Branch stiffness relative to the particle spring (`k_m / k`).
+    pub ratio: f64,
+    /// Relaxation time constant [s].
+    pub tau_s: f64,
+}
+
+/// The power-law part of the particle springs (see the module docs).
+#[derive(Debug, Clone)]
+pub struct PowerSpring {
+    /// Linear stiffness of each particle's spring [N/m].
+    pub stiffness: Vec<f64>,
+    /// Exponent `n`.
+    pub exponent: f64,
+}
+
+impl ParticleLaw for PowerSpring {
+    fn name(&self) -> &'static str {
+        "power_spring"
+    }
+
+    fn add_terms(&self, ctx: &LawContext<'_>, out: &mut LawTerms) {
+        let n = self.exponent;
+        let u0 = POWER_REFERENCE_DEPTH;
+        for i in 0..ctx.u.len() {
+            let u = ctx.u[i];
+            let a = u.abs();
+            if a < 1e-12 {
+                continue;
+            }
+            let k = self.stiffness[i];
+            let ratio = a / u0;
+            let power = u0 * ratio.powf(n);
+            out.force[i] -= k * (power - a) * u.signum();
+            // d/du of the extra force, negated; the linear spring already adds k.
+            out.stiffness[i] += k * (n * ratio.powf(n - 1.0) - 1.0);
+        }
+    }
+
+    fn box_clone(&self) -> Box<dyn ParticleLaw> {
+        Box::new(self.clone())
+    }
+}
+
+/// Maxwell branches, one per particle (see the module docs).
+#[derive(Debug, Clone)]
+pub struct MaxwellBranch {
+    /// Branch stiffness per particle [N/m].
+    pub stiffness: Vec<f64>,
+    /// Time constant [s].
+    pub tau: f64,
+    /// Dashpot positions [m].
+    pub x: Vec<f64>,
+}
+
+impl ParticleLaw for MaxwellBranch {
+    fn name(&self) -> &'static str {
+        "maxwell_branch"
+    }
+
+    fn add_terms(&self, ctx: &LawContext<'_>, out: &mut LawTerms) {
+        for i in 0..ctx.u.len() {
+            let k = self.stiffness[i];
+            out.force[i] -= k * (ctx.u[i] - self.x[i]);
+            out.stiffness[i] += k;
+        }
+    }
+
+    fn advance(&mut self, ctx: &LawContext<'_>) {
+        let decay = (-ctx.dt / self.tau).exp();
+        for (x, u) in self.x.iter_mut().zip(ctx.u) {
+            *x = u + (*x - u) * decay;
+        }
+    }
+
+    fn box_clone(&self) -> Box<dyn ParticleLaw> {
+        Box::new(self.clone())
+    }
+}
