@@ -15,6 +15,7 @@ from __future__ import annotations
 import gymnasium
 
 from echogym._native import PROTOCOL_VERSION, __version__, registered_envs
+from echogym.calibration import load_calibration
 from echogym.client import Client, connect
 from echogym import errors
 from echogym.errors import *  # noqa: F403 (the exception tree, listed in errors.__all__)
@@ -43,6 +44,7 @@ __all__ = [
     "EchoVectorEnv",
     "__version__",
     "connect",
+    "load_calibration",
     "registered_envs",
     *errors.__all__,
 ]

@@ -1,5 +1,6 @@
-"""The ``echogym`` console script: the Rust CLI (serve, status, stop, envs) in-process,
-plus ``echogym demo`` (the force-controlled sweep demo, in Python)."""
+"""The ``echogym`` console script: the Rust CLI (serve, status, stop, envs, calibrate)
+in-process, plus ``echogym demo`` (the force-controlled sweep demo, in Python); after a
+successful ``echogym calibrate DATASET --out OUT`` it draws the report's plots."""
 
 from __future__ import annotations
 
@@ -17,6 +18,12 @@ def main(argv: list[str] | None = None) -> int:
 
         return demo_main(argv[2:])
     code = cli_main(argv)
+    if code == 0 and len(argv) > 2 and argv[1] == "calibrate" and argv[2] != "synth" and "--out" in argv:
+        from echogym.calibration import plot_report
+
+        out = argv[argv.index("--out") + 1]
+        paths = plot_report(out)
+        print("plots: " + ", ".join(str(p) for p in paths))
     if len(argv) > 1 and argv[1] in ("-h", "--help", "help"):
         print("\nAlso: echogym demo [--help]   the force-controlled ultrasound sweep demo")
     return code

@@ -30,6 +30,16 @@ pub const CATALOGUE: [&str; 7] = [
     "site_heterogeneity",
 ];
 
+/// The baseline's contact stiffness and damping, to scale signatures and bound the
+/// readjustment.
+#[derive(Debug, Clone, Copy)]
+pub struct Base {
+    /// Contact stiffness [N/m].
+    pub k: f64,
+    /// Contact damping [N·s/m].
+    pub c: f64,
+}
+
 /// Reference depth of the nonlinear signature [m] (same as the power spring's).
 const DEPTH_REFERENCE: f64 = 0.01;
 
@@ -74,13 +84,50 @@ fn least_squares(columns: &[Vec<f64>], y: &[f64], use_row: &[bool]) -> Vec<f64> 
 /// Columns for one series given the grid parameter.
 type Columns<'a> = dyn Fn(&Series, f64) -> Vec<Vec<f64>> + 'a;
 
+/// The baseline's own degrees of freedom, linearised: contact stiffness, surface offset
+/// and damping changes. Every signature is fitted together with them, so an effect's
+/// evidence is measured against a re-balanced baseline (a missing effect otherwise
+/// leaves the baseline's fitted values distorted, which other signatures would "explain").
+pub fn readjust_columns(s: &Series, k_eff: f64, damping: bool) -> Vec<Vec<f64>> {
+    let c = contact_mask(s);
+    let mut columns = vec![
+        positive_depth(s).iter().map(|d| k_eff * d).collect(),
+        c.iter().map(|c| k_eff * c).collect(),
+    ];
+    if damping {
+        columns.push(s.vz.iter().zip(&c).map(|(v, c)| -v * c).collect());
+    }
+    columns
+}
+
 /// Fit shared coefficients on the training series for each grid value; keep the best.
+/// The baseline's readjustment columns are appended to the candidate's.
 fn fit_shared(
     series: &[Series],
     train: &[bool],
     grid: &[f64],
-    columns: &Columns<'_>,
+    base: Base,
+    candidate: &Columns<'_>,
 ) -> (f64, Vec<f64>, Vec<Vec<f64>>) {
+    fit_with(series, train, grid, base, true, candidate)
+}
+
+/// [`fit_shared`], choosing whether the damping readjustment is free (a sensor delay
+/// looks like negative damping at low frequencies: its fit must not trade against it).
+fn fit_with(
+    series: &[Series],
+    train: &[bool],
+    grid: &[f64],
+    base: Base,
+    damping: bool,
+    candidate: &Columns<'_>,
+) -> (f64, Vec<f64>, Vec<Vec<f64>>) {
+    let (k_eff, min_damping) = (base.k, base.c);
+    let columns = |s: &Series, g: f64| {
+        let mut c = candidate(s, g);
+        c.extend(readjust_columns(s, k_eff, damping));
+        c
+    };
     let mut best = (f64::INFINITY, 0.0, Vec::new());
     for &g in grid {
         let cols: Vec<Vec<Vec<f64>>> = series.iter().map(|s| columns(s, g)).collect();
@@ -98,7 +145,13 @@ fn fit_shared(
             y.extend_from_slice(&s.residual);
         }
         let rows = vec![true; y.len()];
-        let beta = least_squares(&stacked, &y, &rows);
+        let mut beta = least_squares(&stacked, &y, &rows);
+        // The baseline's damping cannot go below zero: a readjustment that would need
+        // negative damping is refitted without that column (the bound is active).
+        if damping && beta[p - 1] < -min_damping {
+            stacked[p - 1].iter_mut().for_each(|v| *v = 0.0);
+            beta = least_squares(&stacked, &y, &rows);
+        }
         let sse: f64 = (0..y.len())
             .map(|i| {
                 let fit: f64 = (0..p).map(|j| beta[j] * stacked[j][i]).sum();
@@ -141,21 +194,31 @@ fn log_grid(lo: f64, hi: f64, n: usize) -> Vec<f64> {
         .collect()
 }
 
+/// The baseline's readjustment alone (no effect), fitted on the training series: the
+/// reference every candidate is compared with.
+pub fn readjusted(series: &[Series], train: &[bool], base: Base) -> Vec<Vec<f64>> {
+    fit_shared(series, train, &[0.0], base, &|_, _| Vec::new()).2
+}
+
 /// Fit effect `name`'s signature to the residuals (`k_eff`: the baseline's contact
 /// stiffness [N/m], to express force amplitudes as lengths).
-pub fn fit(name: &'static str, series: &[Series], train: &[bool], k_eff: f64) -> Option<Signature> {
+pub fn fit(name: &'static str, series: &[Series], train: &[bool], base: Base) -> Option<Signature> {
+    let k_eff = base.k;
     let mut params = serde_json::Map::new();
     let predicted = match name {
         "sensor_bias" => {
-            let (_, beta, predicted) =
-                fit_shared(series, train, &[0.0], &|s, _| vec![vec![1.0; s.len()]]);
+            let (_, beta, predicted) = fit_shared(series, train, &[0.0], base, &|s, _| {
+                vec![vec![1.0; s.len()]]
+            });
             params.insert("fz_n".into(), beta[0].into());
             predicted
         }
         "sensor_delay" => {
+            // A delay is a fixed-gain signature, F(t − τ) − F(t): with a free gain any τ
+            // in the linear regime fits equally (and trades against damping).
             let grid: Vec<f64> = (1..=40).map(|k| k as f64 * 0.0025).collect();
-            let (tau, beta, predicted) = fit_shared(series, train, &grid, &|s, tau| {
-                let lagged: Vec<f64> = (0..s.len())
+            let lagged = |s: &Series, tau: f64| -> Vec<f64> {
+                (0..s.len())
                     .map(|i| {
                         let t = s.t[i] - tau;
                         let k = s.t.partition_point(|&x| x <= t).clamp(1, s.len() - 1);
@@ -163,18 +226,48 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], k_eff: f64) ->
                         let f = s.predicted[k - 1] + w * (s.predicted[k] - s.predicted[k - 1]);
                         f - s.predicted[i]
                     })
+                    .collect()
+            };
+            let mut best = (f64::INFINITY, 0.0, Vec::new());
+            for &tau in &grid {
+                let shifted: Vec<Series> = series
+                    .iter()
+                    .map(|s| {
+                        let mut c = s.clone();
+                        for (r, l) in c.residual.iter_mut().zip(lagged(s, tau)) {
+                            *r -= l;
+                        }
+                        c
+                    })
                     .collect();
-                vec![lagged]
-            });
-            // The signature is F(t − τ) − F(t) with unit gain; a gain far from 1 is not a delay.
-            if !(0.5..=1.5).contains(&beta[0]) {
-                return None;
+                let (_, _, base) = fit_shared(&shifted, train, &[0.0], base, &|_, _| Vec::new());
+                let sse: f64 = shifted
+                    .iter()
+                    .zip(&base)
+                    .zip(train)
+                    .filter(|(_, t)| **t)
+                    .map(|((s, b), _)| {
+                        s.residual
+                            .iter()
+                            .zip(b)
+                            .map(|(r, b)| (r - b).powi(2))
+                            .sum::<f64>()
+                    })
+                    .sum();
+                if sse < best.0 {
+                    best = (sse, tau, base);
+                }
             }
+            let (_, tau, base) = best;
             params.insert("delay_s".into(), tau.into());
-            predicted
+            series
+                .iter()
+                .zip(&base)
+                .map(|(s, b)| lagged(s, tau).iter().zip(b).map(|(l, b)| l + b).collect())
+                .collect()
         }
         "tissue_inertia" => {
-            let (_, beta, predicted) = fit_shared(series, train, &[0.0], &|s, _| {
+            let (_, beta, predicted) = fit_shared(series, train, &[0.0], base, &|s, _| {
                 vec![
                     s.az.iter()
                         .zip(&s.contact)
@@ -190,7 +283,7 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], k_eff: f64) ->
         }
         "nonlinear_stiffness" => {
             let grid: Vec<f64> = (0..=40).map(|k| 0.6 + k as f64 * 0.05).collect();
-            let (n, _, predicted) = fit_shared(series, train, &grid, &|s, n| {
+            let (n, _, predicted) = fit_shared(series, train, &grid, base, &|s, n| {
                 let d = positive_depth(s);
                 let power = d
                     .iter()
@@ -207,7 +300,7 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], k_eff: f64) ->
         }
         "viscoelastic_relaxation" => {
             let grid = log_grid(0.1, 30.0, 40);
-            let (tau, beta, predicted) = fit_shared(series, train, &grid, &|s, tau| {
+            let (tau, beta, predicted) = fit_shared(series, train, &grid, base, &|s, tau| {
                 let d = positive_depth(s);
                 let mut x = 0.0;
                 let decay = (-s.dt / tau).exp();
@@ -218,7 +311,7 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], k_eff: f64) ->
                         k_eff * (d - x)
                     })
                     .collect();
-                vec![branch, d.iter().map(|d| k_eff * d).collect()]
+                vec![branch]
             });
             if beta[0] <= 0.0 {
                 return None;
@@ -228,45 +321,93 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], k_eff: f64) ->
             predicted
         }
         "breathing_motion" => {
-            let grid: Vec<f64> = (0..=120).map(|k| 0.1 + k as f64 * 0.004).collect();
-            // Per-recording phase and amplitude (breathing is not phase-locked to the
-            // recordings), common frequency.
+            // The baseline's readjustment first, then per-recording sinusoids: breathing is
+            // not phase-locked to the recordings and its rate drifts, so each recording
+            // gets its own phase and a rate within ±15 % of the common one.
+            let (_, _, base) = fit_shared(series, train, &[0.0], base, &|_, _| Vec::new());
+            let rest: Vec<Vec<f64>> = series
+                .iter()
+                .zip(&base)
+                .map(|(s, b)| s.residual.iter().zip(b).map(|(r, b)| r - b).collect())
+                .collect();
+            let grid: Vec<f64> = (0..=140).map(|k| 0.12 + k as f64 * 0.003).collect();
             let mut best = (f64::INFINITY, 0.0);
             for &f in &grid {
-                let mut sse = 0.0;
-                for (k, s) in series.iter().enumerate() {
-                    if train[k] {
-                        sse += sinusoid_fit(s, f).0;
-                    }
-                }
+                let sse: f64 = series
+                    .iter()
+                    .zip(&rest)
+                    .zip(train)
+                    .filter(|(_, t)| **t)
+                    .map(|((s, r), _)| sinusoid_fit(s, r, f).0)
+                    .sum();
                 if sse < best.0 {
                     best = (sse, f);
                 }
             }
             let f = best.1;
-            let mut amplitudes = Vec::new();
-            let mut phases = Vec::new();
-            let predicted = series
+            if f <= grid[0] + 1e-9 || f >= grid[grid.len() - 1] - 1e-9 {
+                return None;
+            }
+            let per: Vec<(f64, f64, f64)> = series
                 .iter()
-                .map(|s| {
-                    let (_, a, b, pred) = sinusoid_fit(s, f);
-                    amplitudes.push(a.hypot(b));
-                    // Force ≈ k·A(1 − cos φ)/2 with φ = φ₀ + 2πf·t, so the fitted
-                    // a·sin + b·cos gives φ₀ = atan2(a, −b); stored at the first sample.
-                    phases.push(a.atan2(-b) + std::f64::consts::TAU * f * s.t[0]);
-                    pred
+                .zip(&rest)
+                .map(|(s, r)| {
+                    let mut b = (f64::INFINITY, f, 0.0, 0.0);
+                    for k in 0..=30 {
+                        let fk = f * (0.85 + 0.01 * k as f64);
+                        let (sse, a, c, _) = sinusoid_fit(s, r, fk);
+                        if sse < b.0 {
+                            b = (sse, fk, a, c);
+                        }
+                    }
+                    (b.1, b.2, b.3)
                 })
                 .collect();
-            let train_amps: Vec<f64> = amplitudes
+            let train_amps: Vec<f64> = per
                 .iter()
                 .zip(train)
-                .filter(|&(_, &t)| t)
-                .map(|(a, _)| *a)
+                .filter(|(_, t)| **t)
+                .map(|((_, a, c), _)| a.hypot(*c))
                 .collect();
             let amp = train_amps.iter().sum::<f64>() / train_amps.len().max(1) as f64;
+            let mut phases = Vec::new();
+            let mut freqs = Vec::new();
+            let predicted = series
+                .iter()
+                .zip(&per)
+                .zip(&base)
+                .enumerate()
+                .map(|(k, ((s, &(fk, a, c)), b))| {
+                    // Held-out recordings keep only their phase: the amplitude is the
+                    // training recordings' mean.
+                    let norm = a.hypot(c).max(1e-12);
+                    let (a, c) = if train[k] {
+                        (a, c)
+                    } else {
+                        (a / norm * amp, c / norm * amp)
+                    };
+                    // Force ≈ k·A(1 − cos φ)/2 with φ = φ₀ + 2πf·t, so the fitted
+                    // a·sin + b·cos gives φ₀ = atan2(a, −b); stored at the first sample.
+                    phases.push(a.atan2(-c) + std::f64::consts::TAU * fk * s.t[0]);
+                    freqs.push(fk);
+                    let w = std::f64::consts::TAU * fk;
+                    s.t.iter()
+                        .zip(&s.contact)
+                        .zip(b)
+                        .map(|((t, &on), b)| {
+                            b + if on {
+                                a * (w * t).sin() + c * (w * t).cos()
+                            } else {
+                                0.0
+                            }
+                        })
+                        .collect()
+                })
+                .collect();
             params.insert("freq_hz".into(), f.into());
             params.insert("amplitude_m".into(), (2.0 * amp / k_eff).into());
             params.insert("phase_rad".into(), serde_json::json!(phases));
+            params.insert("freq_by_recording_hz".into(), serde_json::json!(freqs));
             predicted
         }
         "site_heterogeneity" => {
@@ -277,7 +418,7 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], k_eff: f64) ->
                 return None;
             }
             let sites_ref = &sites;
-            let (_, beta, predicted) = fit_shared(series, train, &[0.0], &|s, _| {
+            let (_, beta, predicted) = fit_shared(series, train, &[0.0], base, &|s, _| {
                 sites_ref
                     .iter()
                     .map(|site| {
@@ -294,6 +435,14 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], k_eff: f64) ->
                 .zip(&beta)
                 .map(|(site, b)| (site.clone(), (1.0 + b).into()))
                 .collect();
+            // Heterogeneity is a difference between sites, not a common scale (that is the
+            // baseline's stiffness): the site scales must spread by at least 15 %.
+            let scales = &beta[..sites.len()];
+            let spread = scales.iter().copied().fold(f64::MIN, f64::max)
+                - scales.iter().copied().fold(f64::MAX, f64::min);
+            if spread < 0.15 {
+                return None;
+            }
             params.insert("stiffness_scale_by_site".into(), by_site.into());
             predicted
         }
@@ -306,9 +455,9 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], k_eff: f64) ->
     })
 }
 
-/// Fit `a·sin + b·cos` at `f` to the in-contact residual of one series: (SSE, a, b,
-/// prediction).
-fn sinusoid_fit(s: &Series, f: f64) -> (f64, f64, f64, Vec<f64>) {
+/// Fit `a·sin + b·cos` at `f` to the in-contact part of `residual` (one series): (SSE,
+/// a, b, prediction).
+fn sinusoid_fit(s: &Series, residual: &[f64], f: f64) -> (f64, f64, f64, Vec<f64>) {
     let w = std::f64::consts::TAU * f;
     let mask = contact_mask(s);
     let sin: Vec<f64> =
@@ -322,12 +471,11 @@ fn sinusoid_fit(s: &Series, f: f64) -> (f64, f64, f64, Vec<f64>) {
             .map(|(t, m)| m * (w * t).cos())
             .collect();
     let rows = vec![true; s.len()];
-    let beta = least_squares(&[sin.clone(), cos.clone()], &s.residual, &rows);
+    let beta = least_squares(&[sin.clone(), cos.clone()], residual, &rows);
     let pred: Vec<f64> = (0..s.len())
         .map(|i| beta[0] * sin[i] + beta[1] * cos[i])
         .collect();
-    let sse = s
-        .residual
+    let sse = residual
         .iter()
         .zip(&pred)
         .map(|(r, p)| (r - p).powi(2))

@@ -38,6 +38,9 @@ pub struct Model {
     pub breathing: Option<(f64, f64)>,
     /// Breathing phase at each recording's start [rad], by recording index.
     pub breathing_phase: Vec<f64>,
+    /// Breathing rate of each recording [Hz] (the rate drifts between recordings; empty:
+    /// the common rate).
+    pub breathing_freq: Vec<f64>,
     /// Tissue mass moving with the probe [kg].
     pub moving_mass: f64,
     /// Constant force offset of the sensor, world z [N].
@@ -59,6 +62,7 @@ impl Model {
             relaxation: None,
             breathing: None,
             breathing_phase: Vec::new(),
+            breathing_freq: Vec::new(),
             moving_mass: 0.0,
             bias: 0.0,
             delay: 0.0,

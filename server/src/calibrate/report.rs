@@ -87,7 +87,7 @@ fn model_json(m: &Model) -> serde_json::Value {
 }
 
 /// Fitted parameters of an accepted effect, from the calibrated model (catalogue keys).
-fn calibrated_params(name: &str, m: &Model, k_site: f64) -> serde_json::Value {
+fn calibrated_params(name: &str, m: &Model, site_stiffness: &[(String, f64)]) -> serde_json::Value {
     match name {
         "sensor_bias" => serde_json::json!({"fz_n": m.bias}),
         "sensor_delay" => serde_json::json!({"delay_s": m.delay}),
@@ -108,12 +108,16 @@ fn calibrated_params(name: &str, m: &Model, k_site: f64) -> serde_json::Value {
             serde_json::json!({"freq_hz": f, "amplitude_m": a})
         }
         "site_heterogeneity" => {
-            let by: serde_json::Map<String, serde_json::Value> = m
+            let by: serde_json::Map<String, serde_json::Value> = site_stiffness
+                .iter()
+                .map(|(s, v)| (s.clone(), (*v).into()))
+                .collect();
+            let scale: serde_json::Map<String, serde_json::Value> = m
                 .site_scale
                 .iter()
-                .map(|(s, v)| (s.clone(), (v * k_site).into()))
+                .map(|(s, v)| (s.clone(), (*v).into()))
                 .collect();
-            serde_json::json!({"stiffness_by_site": by, "unit": "N/m (static contact stiffness)"})
+            serde_json::json!({"stiffness_by_site": by, "unit": "N/m (static contact stiffness at 5 mm)", "spring_scale_by_site": scale})
         }
         _ => serde_json::Value::Null,
     }
@@ -131,15 +135,14 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
     let before_held = rmse_of(o, &o.heldout, false);
     let after_train = rmse_of(o, &o.train, true);
     let after_held = rmse_of(o, &o.heldout, true);
-    let k_per = o.k_eff / o.baseline.stiffness;
-    let k_site = o.calibrated.stiffness * k_per;
+    let site_stiffness = site_stiffness(o);
     let effects: Vec<serde_json::Value> = o
         .accepted
         .iter()
         .map(|a| {
             serde_json::json!({
                 "name": a.name,
-                "params": calibrated_params(a.name, &o.calibrated, k_site),
+                "params": calibrated_params(a.name, &o.calibrated, &site_stiffness),
                 "signature_params": a.params,
                 "evidence": a.evidence,
                 "heldout_rmse_n": a.heldout_rmse_n,
@@ -152,7 +155,7 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
         "split": {
             "train": files(&o.train),
             "heldout": files(&o.heldout),
-            "rule": "whole recordings; one held out per site with two or more (seeded)",
+            "rule": "whole recordings (seeded): one of each protocol with several, then one per site with several, never a site's last training recording",
         },
         "noise_floor_n": o.noise,
         "baseline": {
@@ -248,14 +251,28 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
             before_held,
             after_train,
             after_held,
-            k_site,
+            &site_stiffness,
         ),
     )
     .map_err(io_error(&path))?;
     Ok(())
 }
 
-fn effect_sentence(name: &str, m: &Model, k_site: f64) -> String {
+/// Static contact stiffness [N/m] of the calibrated torso at each site, 5 mm deep.
+fn site_stiffness(o: &Outcome) -> Vec<(String, f64)> {
+    let params = o.setup.torso_params(&o.calibrated);
+    let Ok(torso) = crate::sim::torso::Torso::new(params, crate::sim::torso::ProbeFace::default())
+    else {
+        return Vec::new();
+    };
+    o.setup
+        .sites
+        .iter()
+        .map(|(name, xy)| (name.clone(), torso.static_probe_stiffness(*xy, 0.005)))
+        .collect()
+}
+
+fn effect_sentence(name: &str, m: &Model, site_stiffness: &[(String, f64)]) -> String {
     match name {
         "sensor_bias" => format!(
             "the force sensor reads a constant {:+.2} N offset (e.g. uncompensated tool weight); added a sensor bias",
@@ -296,10 +313,9 @@ fn effect_sentence(name: &str, m: &Model, k_site: f64) -> String {
             )
         }
         "site_heterogeneity" => {
-            let parts: Vec<String> = m
-                .site_scale
+            let parts: Vec<String> = site_stiffness
                 .iter()
-                .map(|(s, v)| format!("{s} {:.0} N/m", v * k_site))
+                .map(|(s, v)| format!("{s} {v:.0} N/m"))
                 .collect();
             format!(
                 "stiffness differs by site ({}); added local stiffness at the sites",
@@ -310,12 +326,19 @@ fn effect_sentence(name: &str, m: &Model, k_site: f64) -> String {
     }
 }
 
-fn markdown(o: &Outcome, bt: f64, bh: f64, at: f64, ah: f64, k_site: f64) -> String {
+fn markdown(
+    o: &Outcome,
+    bt: f64,
+    bh: f64,
+    at: f64,
+    ah: f64,
+    site_stiffness: &[(String, f64)],
+) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "# Calibration report\n");
     let _ = writeln!(
         s,
-        "Dataset `{}`: {} recordings; trained on {}, held out {} (whole recordings, one per site with several). Noise floor ≈ {:.3} N.\n",
+        "Dataset `{}`: {} recordings; trained on {}, held out {} (whole recordings: one of each protocol with several, then one per site). Noise floor ≈ {:.3} N.\n",
         o.dataset.dir.display(),
         o.series.len(),
         o.train.len(),
@@ -380,7 +403,7 @@ fn markdown(o: &Outcome, bt: f64, bh: f64, at: f64, ah: f64, k_site: f64) -> Str
             s,
             "- **{}**: {}. Evidence: {}.",
             a.name,
-            effect_sentence(a.name, &o.calibrated, k_site),
+            effect_sentence(a.name, &o.calibrated, site_stiffness),
             a.evidence
         );
     }

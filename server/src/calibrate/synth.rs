@@ -23,6 +23,7 @@
 
 use std::path::{Path, PathBuf};
 
+use rand::seq::SliceRandom;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, Normal};
 use rand_pcg::Pcg64Mcg;
@@ -222,7 +223,7 @@ pub fn generate(effects: &[String], seed: u64, out: &Path) -> Result<Truth, Synt
         }),
         moving_mass: rng.random_range(0.03..0.08)
             + if has("tissue_inertia") {
-                rng.random_range(0.6..1.2)
+                rng.random_range(1.5..3.0)
             } else {
                 0.0
             },
@@ -261,22 +262,22 @@ pub fn generate(effects: &[String], seed: u64, out: &Path) -> Result<Truth, Synt
     )?;
     writer.meta_mut().notes = Some("generated; ground truth in ../truth.json".into());
     let rates = [100.0, 200.0, 250.0, 500.0, 1000.0, 2000.0];
-    let protocols = ["press", "chirp", "slide", "press", "press"];
+    // A session: a press at every site, then two depth chirps, two slides and another
+    // press at randomly chosen sites.
+    let mut extra_sites: Vec<usize> = (0..5).collect();
+    extra_sites.shuffle(&mut rng);
+    let plan: Vec<(usize, &str)> = (0..5)
+        .map(|s| (s, "press"))
+        .chain([
+            (extra_sites[0], "chirp"),
+            (extra_sites[1], "chirp"),
+            (extra_sites[2], "slide"),
+            (extra_sites[3], "slide"),
+            (extra_sites[4], "press"),
+        ])
+        .collect();
     let mut listed = Vec::new();
-    for k in 0..10 {
-        let site = k % 5;
-        let protocol = if k < 5 {
-            "press"
-        } else {
-            protocols[(k + seed as usize) % protocols.len()]
-        };
-        let protocol = if k == 6 {
-            "chirp"
-        } else if k == 8 {
-            "slide"
-        } else {
-            protocol
-        };
+    for (k, &(site, protocol)) in plan.iter().enumerate() {
         let rate = rates[rng.random_range(0..rates.len())];
         let path = trajectory(protocol, site, &model, &mut rng);
         let recording = measure(&path, site, &model, rate, &mut rng);
@@ -382,9 +383,9 @@ fn trajectory(protocol: &str, site: usize, model: &TruthModel, rng: &mut Pcg64Mc
             b.move_to([xy[0], xy[1], surface - depth], 0.01)
                 .hold(1.0)
                 .chirp(
-                    rng.random_range(0.0015..0.003),
-                    0.2,
-                    3.0,
+                    rng.random_range(0.0015..0.0025),
+                    0.3,
+                    5.0,
                     rng.random_range(10.0..14.0),
                 )
                 .hold(1.0)

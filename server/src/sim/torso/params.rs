@@ -77,8 +77,9 @@ pub struct TorsoParams {
     /// `−m·a` along the probe's motion. Default 0 (the particles' own mass only).
     pub moving_mass: f64,
     /// Local stiffness scales around points of the top (e.g. a stiffer site found by
-    /// calibration): particle springs within ≈ 3 cm of `xy` are scaled towards `scale`
-    /// (Gaussian weight, σ = 2 cm). Default none.
+    /// calibration): particle springs near `xy` are scaled towards `scale` (Gaussian
+    /// weight, σ = 4 cm: wider than the smoothing length, so the scale shows in the
+    /// contact stiffness). Default none.
     pub stiffness_sites: Vec<SiteStiffness>,
 }
 
@@ -257,7 +258,7 @@ impl TorsoParams {
         let mut scale = 1.0;
         for site in &self.stiffness_sites {
             let d2 = (xy[0] - site.xy[0]).powi(2) + (xy[1] - site.xy[1]).powi(2);
-            scale += (site.scale - 1.0) * (-d2 / (2.0 * 0.02 * 0.02)).exp();
+            scale += (site.scale - 1.0) * (-d2 / (2.0 * 0.04 * 0.04)).exp();
         }
         scale.max(0.05)
     }
