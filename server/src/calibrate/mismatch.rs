@@ -225,7 +225,7 @@ fn frequency_shares(series: &[Series]) -> Vec<Share> {
                 im -= r * (w * j as f64).sin();
             }
             // Parseval: Σ|X_k|²/n over all k equals Σ x²; fold the mirrored half.
-            let mirrored = if k == 0 || (n % 2 == 0 && k == n / 2) {
+            let mirrored = if k == 0 || (n.is_multiple_of(2) && k == n / 2) {
                 1.0
             } else {
                 2.0

@@ -424,7 +424,7 @@ fn measure(path: &Path3, site: usize, m: &TruthModel, rate: f64, rng: &mut Pcg64
         None => m.surface_z,
     };
     let mut previous_surface = surface_at(phase);
-    for i in 0..n {
+    for (i, slot) in force.iter_mut().enumerate() {
         if let Some((f, _, d)) = m.breathing {
             let theta = TRUTH_DT / 20.0;
             drift += -theta * drift + d * (2.0 * theta).sqrt() * breath_noise.sample(rng);
@@ -462,7 +462,7 @@ fn measure(path: &Path3, site: usize, m: &TruthModel, rate: f64, rng: &mut Pcg64
         } else {
             (0.0, 0.0)
         };
-        force[i] = [fx, fy, fz];
+        *slot = [fx, fy, fz];
     }
     let noise = Normal::new(0.0, m.noise).expect("finite");
     let duration = path.duration() - m.delay;

@@ -128,19 +128,7 @@ impl TaskConfig for CalibrationPressConfig {
             ..ControllerConfig::default()
         };
         config.horizon = 4000;
-        config.randomization = Randomization {
-            torso_stiffness: None,
-            torso_damping: None,
-            torso_shift: [0.0; 2],
-            torso_scale: [1.0; 2],
-            skin_friction: None,
-            probe_mass: None,
-            joint_noise: 0.0,
-            probe_position_noise: 0.0,
-            ft_bias: 0.0,
-            ft_noise: None,
-            ..Randomization::default()
-        };
+        config.randomization = Randomization::none();
         config
     }
 

@@ -524,13 +524,10 @@ impl Torso {
         self.previous_probe_velocity = Some(v);
     }
 
-    /// Static displacements [m] of the free torso (no probe) under per-particle normal
-    /// forces `force` [N] with `volume_offset` [m³] added to its rest volume: the exact
-    /// equilibrium of the discrete model with the laws' stiffness at rest. Used to
-    /// calibrate driven laws (breathing) so they reach a stated displacement.
-    pub fn static_response(&self, force: &[f64], volume_offset: f64) -> Vec<f64> {
+    /// Diagonal of the static stiffness matrix at rest: the laws' stiffness at zero
+    /// displacement plus the ground links (edges and volume are applied by `System`).
+    fn static_diagonal(&self) -> Vec<f64> {
         let n = self.u.len();
-        assert_eq!(force.len(), n, "one force per particle");
         let mut terms = LawTerms::default();
         terms.reset(n);
         let zeros = vec![0.0; n];
@@ -545,9 +542,19 @@ impl Torso {
         for law in &self.laws {
             law.add_terms(&ctx, &mut terms);
         }
-        let diag: Vec<f64> = (0..n)
+        (0..n)
             .map(|i| terms.stiffness[i] + self.layout.ground[i] * self.edge_k)
-            .collect();
+            .collect()
+    }
+
+    /// Static displacements [m] of the free torso (no probe) under per-particle normal
+    /// forces `force` [N] with `volume_offset` [m³] added to its rest volume: the exact
+    /// equilibrium of the discrete model with the laws' stiffness at rest. Used to
+    /// calibrate driven laws (breathing) so they reach a stated displacement.
+    pub fn static_response(&self, force: &[f64], volume_offset: f64) -> Vec<f64> {
+        let n = self.u.len();
+        assert_eq!(force.len(), n, "one force per particle");
+        let diag = self.static_diagonal();
         let rhs: Vec<f64> = (0..n)
             .map(|i| force[i] + self.volume_k * volume_offset * self.layout.area[i])
             .collect();
@@ -576,23 +583,7 @@ impl Torso {
     /// penalty in series), for documentation and validation.
     pub fn static_probe_stiffness(&self, xy: [f64; 2], depth: f64) -> f64 {
         let n = self.u.len();
-        let mut terms = LawTerms::default();
-        terms.reset(n);
-        let zeros = vec![0.0; n];
-        let ctx = LawContext {
-            t: self.t,
-            dt: 0.0,
-            u: &zeros,
-            v: &zeros,
-            mass: &self.mass,
-            rest: &self.layout.rest,
-        };
-        for law in &self.laws {
-            law.add_terms(&ctx, &mut terms);
-        }
-        let diag: Vec<f64> = (0..n)
-            .map(|i| terms.stiffness[i] + self.layout.ground[i] * self.edge_k)
-            .collect();
+        let diag = self.static_diagonal();
         let kc = self.params.contact_stiffness * self.sample_area;
         let mut rhs = vec![0.0; n];
         let mut rows = Vec::new();
