@@ -7,8 +7,8 @@
 //! writing nothing.
 //!
 //! The CI subset covers: no effect, a sensor bias, viscoelastic relaxation, site
-//! heterogeneity, and a sensor delay with site heterogeneity. Known failure (in the full
-//! matrix, documented): a sensor bias concealed together with strong relaxation is missed. The full matrix (every effect and
+//! heterogeneity, a sensor bias with relaxation, and a sensor delay with site
+//! heterogeneity. The full matrix (every effect and
 //! pairs, several seeds) is `cargo test --release --test calibrate -- --ignored`; its
 //! results are in docs/calibration.md.
 
@@ -172,6 +172,12 @@ fn site_heterogeneity_is_named_and_located() {
     for (site, k) in truth.as_object().unwrap() {
         near((found[site].as_f64().unwrap(), k.as_f64().unwrap()), 0.15);
     }
+}
+
+#[test]
+fn bias_and_relaxation_together_are_both_named() {
+    let run = calibrate(&["sensor_bias", "viscoelastic_relaxation"], 3);
+    expect(&run, &["sensor_bias", "viscoelastic_relaxation"]);
 }
 
 #[test]

@@ -197,64 +197,83 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
 
     progress.stage("testing the catalogue of effects on held-out recordings");
     let is_train: Vec<bool> = all.iter().map(|i| train.contains(i)).collect();
-    let baseline_heldout = heldout_rmse_of(&series, &heldout, None);
 
     progress.stage("modelling the accepted effects in the simulator and refitting");
-    // The held-out test in the simulator itself: the calibrated simulator must beat the
-    // baseline on the held-out recordings; an effect that does not is excluded and the
-    // selection runs again without it.
+    // Forward selection, one effect per round. Each round's candidate is judged on the
+    // residual of the simulator as calibrated so far (baseline and accepted effects
+    // refitted by replay), so a weak effect is not hidden behind a strong one's
+    // linearisation; then the held-out test in the simulator itself: the refitted
+    // simulator must beat the previous one on the held-out recordings by the round's
+    // threshold, else the effect is excluded and the round runs again without it.
+    let mut calibrated = baseline.clone();
+    let mut current: Vec<Series> = series.clone();
+    let mut current_fz: Vec<Vec<f64>> = series.iter().map(|s| s.predicted.clone()).collect();
+    let mut accepted: Vec<report::Accepted> = Vec::new();
     let mut excluded: Vec<&'static str> = Vec::new();
     let mut failed: Vec<report::Rejected> = Vec::new();
-    let (calibrated, calibrated_fz, accepted, rejected) = loop {
-        let (accepted, mut rejected) = select_effects(
-            &series,
+    let mut rejected: Vec<report::Rejected> = Vec::new();
+    let mut threshold = FIRST_GAIN;
+    for _attempt in 0..6 {
+        let k_now = calibrated.stiffness * k_per_unit;
+        let mut skip = excluded.clone();
+        skip.extend(accepted.iter().map(|a| a.name));
+        let (mut found, round_rejected) = select_effects(
+            &current,
             &is_train,
             effects::Base {
-                k: k_eff,
-                c: k_eff * baseline.damping / baseline.stiffness,
+                k: k_now,
+                c: k_now * calibrated.damping / calibrated.stiffness,
             },
             noise,
-            &excluded,
+            &skip,
+            threshold,
+            1,
         );
-        let mut model = baseline.clone();
-        apply_effects(&mut model, &accepted, &setup, k_eff);
-        let names: Vec<&str> = accepted.iter().map(|a| a.name).collect();
-        if !accepted.is_empty() {
-            model = fit_model(&setup, &dataset, &train, model, &names, 4);
-        }
-        let fz: Vec<Vec<f64>> = replay_all(&setup, &model, &dataset.recordings, &all)
-            .into_iter()
-            .map(|p| p.fz)
-            .collect();
+        rejected = round_rejected;
+        let Some(effect) = found.pop() else {
+            break;
+        };
+        let mut model = calibrated.clone();
+        apply_effects(&mut model, std::slice::from_ref(&effect), &setup, k_now);
+        let mut names: Vec<&str> = accepted.iter().map(|a| a.name).collect();
+        names.push(effect.name);
+        model = fit_model(&setup, &dataset, &train, model, &names, 4);
+        let predictions = replay_all(&setup, &model, &dataset.recordings, &all);
+        let fz: Vec<Vec<f64>> = predictions.iter().map(|p| p.fz.clone()).collect();
+        let before = heldout_rmse_of(&series, &heldout, Some(&current_fz));
         let after = heldout_rmse_of(&series, &heldout, Some(&fz));
-        if accepted.is_empty()
-            || baseline_heldout - after >= FIRST_GAIN * baseline_heldout
-            || excluded.len() >= 2
-        {
-            rejected.extend(failed);
-            let (model, fz, accepted) = if accepted.is_empty()
-                || baseline_heldout - after >= FIRST_GAIN * baseline_heldout
-            {
-                (model, fz, accepted)
-            } else {
-                for a in &accepted {
-                    rejected.push(report::Rejected { name: a.name, why: format!("modelled in the simulator, the held-out RMSE went {baseline_heldout:.3} → {after:.3} N") });
-                }
-                let fz = series.iter().map(|s| s.predicted.clone()).collect();
-                (baseline.clone(), fz, Vec::new())
-            };
-            break (model, fz, accepted, rejected);
+        if before - after >= threshold * before {
+            calibrated = model;
+            current_fz = fz;
+            current = all
+                .iter()
+                .map(|&i| {
+                    let e = &dataset.meta.recordings[i];
+                    Series::new(
+                        i,
+                        &e.file,
+                        &e.site,
+                        &e.protocol,
+                        &dataset.recordings[i],
+                        &predictions[i],
+                    )
+                })
+                .collect();
+            accepted.push(effect);
+            threshold *= ESCALATION;
+        } else {
+            excluded.push(effect.name);
+            failed.push(report::Rejected {
+                name: effect.name,
+                why: format!(
+                    "its signature passed, but modelled in the simulator the held-out RMSE went {before:.3} → {after:.3} N (needs {:.1} % lower)",
+                    100.0 * threshold
+                ),
+            });
         }
-        let last = accepted.last().expect("not empty").name;
-        excluded.push(last);
-        failed.push(report::Rejected {
-            name: last,
-            why: format!(
-                "its signature passed, but modelled in the simulator the held-out RMSE went {baseline_heldout:.3} → {after:.3} N (needs {:.1} % lower)",
-                100.0 * FIRST_GAIN
-            ),
-        });
-    };
+    }
+    rejected.extend(failed);
+    let calibrated_fz = current_fz;
     progress.stage("replaying with the calibrated simulator");
 
     progress.stage("writing the report");
@@ -542,11 +561,13 @@ fn select_effects(
     base: effects::Base,
     noise: f64,
     excluded: &[&str],
+    first_threshold: f64,
+    max_effects: usize,
 ) -> (Vec<report::Accepted>, Vec<report::Rejected>) {
     let mut working: Vec<Series> = series.to_vec();
     let mut accepted: Vec<report::Accepted> = Vec::new();
     let mut last_reason: Vec<(&'static str, String)> = Vec::new();
-    let mut threshold = FIRST_GAIN;
+    let mut threshold = first_threshold;
     let heldout_rmse = |w: &[Series], pred: Option<&[Vec<f64>]>, want_train: bool| {
         let rs: Vec<Vec<f64>> = w
             .iter()
@@ -560,7 +581,7 @@ fn select_effects(
         let refs: Vec<&[f64]> = rs.iter().map(|r| r.as_slice()).collect();
         rmse(&refs)
     };
-    loop {
+    while accepted.len() < max_effects {
         let null = effects::readjusted(&working, train, base);
         let before_h = heldout_rmse(&working, Some(&null), false);
         let before_t = heldout_rmse(&working, Some(&null), true);
