@@ -176,20 +176,7 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
 
     progress.stage("replaying every recording with the baseline");
     let predictions = replay_all(&setup, &baseline, &dataset.recordings, &all);
-    let series: Vec<Series> = all
-        .iter()
-        .map(|&i| {
-            let e = &dataset.meta.recordings[i];
-            Series::new(
-                i,
-                &e.file,
-                &e.site,
-                &e.protocol,
-                &dataset.recordings[i],
-                &predictions[i],
-            )
-        })
-        .collect();
+    let series = series_of(&dataset, &predictions);
     let noise = noise_floor(&series);
 
     progress.stage("locating the mismatch");
@@ -245,20 +232,7 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
         if before - after >= threshold * before {
             calibrated = model;
             current_fz = fz;
-            current = all
-                .iter()
-                .map(|&i| {
-                    let e = &dataset.meta.recordings[i];
-                    Series::new(
-                        i,
-                        &e.file,
-                        &e.site,
-                        &e.protocol,
-                        &dataset.recordings[i],
-                        &predictions[i],
-                    )
-                })
-                .collect();
+            current = series_of(&dataset, &predictions);
             accepted.push(effect);
             threshold *= ESCALATION;
         } else {
@@ -297,6 +271,19 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
     report::write(&outcome, &options.out)?;
     progress.finish();
     Ok(outcome)
+}
+
+/// Every recording with a prediction of it (predictions in recording order).
+fn series_of(dataset: &Dataset, predictions: &[replay::Prediction]) -> Vec<Series> {
+    dataset
+        .meta
+        .recordings
+        .iter()
+        .zip(&dataset.recordings)
+        .zip(predictions)
+        .enumerate()
+        .map(|(i, ((e, rec), p))| Series::new(i, &e.file, &e.site, &e.protocol, rec, p))
+        .collect()
 }
 
 /// The dataset's scene: default torso with the dataset's overrides, placed at its
