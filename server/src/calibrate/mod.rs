@@ -144,7 +144,7 @@ pub struct Outcome {
 pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> {
     let mut progress = Progress {
         enabled: options.progress,
-        total: 8,
+        total: 6,
         done: 0,
     };
     progress.stage("reading the dataset");
@@ -182,10 +182,9 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
     progress.stage("locating the mismatch");
     let located = mismatch::locate(&series);
 
-    progress.stage("testing the catalogue of effects on held-out recordings");
     let is_train: Vec<bool> = all.iter().map(|i| train.contains(i)).collect();
 
-    progress.stage("modelling the accepted effects in the simulator and refitting");
+    progress.stage("naming effects: held-out tests of the catalogue, each modelled and refitted in the simulator");
     // Forward selection, one effect per round. Each round's candidate is judged on the
     // residual of the simulator as calibrated so far (baseline and accepted effects
     // refitted by replay), so a weak effect is not hidden behind a strong one's
@@ -221,7 +220,7 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
             break;
         };
         let mut model = calibrated.clone();
-        apply_effects(&mut model, std::slice::from_ref(&effect), &setup, k_now);
+        apply_effects(&mut model, std::slice::from_ref(&effect), &setup);
         let mut names: Vec<&str> = accepted.iter().map(|a| a.name).collect();
         names.push(effect.name);
         model = fit_model(&setup, &dataset, &train, model, &names, 4);
@@ -248,7 +247,6 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
     }
     rejected.extend(failed);
     let calibrated_fz = current_fz;
-    progress.stage("replaying with the calibrated simulator");
 
     progress.stage("writing the report");
     let seed_fits = seed_method::seed_method(&series, -baseline.surface_offset);
@@ -657,10 +655,9 @@ fn heldout_rmse_of(series: &[Series], heldout: &[usize], predicted: Option<&[Vec
 }
 
 /// Turn the accepted signatures into simulator elements of `model`.
-fn apply_effects(model: &mut Model, accepted: &[report::Accepted], setup: &Setup, k_eff: f64) {
+fn apply_effects(model: &mut Model, accepted: &[report::Accepted], setup: &Setup) {
     let num =
         |a: &report::Accepted, key: &str| a.params.get(key).and_then(|v| v.as_f64()).unwrap_or(0.0);
-    let _ = k_eff;
     for a in accepted {
         match a.name {
             "sensor_bias" => model.bias = num(a, "fz_n"),

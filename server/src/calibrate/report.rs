@@ -94,13 +94,7 @@ fn calibrated_params(name: &str, m: &Model, site_stiffness: &[(String, f64)]) ->
         "tissue_inertia" => serde_json::json!({"mass_kg": m.moving_mass}),
         "nonlinear_stiffness" => serde_json::json!({"exponent": m.exponent}),
         "viscoelastic_relaxation" => {
-            let r = m
-                .relaxation
-                .clone()
-                .unwrap_or(crate::sim::torso::Relaxation {
-                    ratio: 0.0,
-                    tau_s: 0.0,
-                });
+            let r = m.relaxation.clone().unwrap_or_default();
             serde_json::json!({"tau_s": r.tau_s, "ratio": r.ratio})
         }
         "breathing_motion" => {
@@ -291,13 +285,7 @@ fn effect_sentence(name: &str, m: &Model, site_stiffness: &[(String, f64)]) -> S
             m.exponent
         ),
         "viscoelastic_relaxation" => {
-            let r = m
-                .relaxation
-                .clone()
-                .unwrap_or(crate::sim::torso::Relaxation {
-                    ratio: 0.0,
-                    tau_s: 0.0,
-                });
+            let r = m.relaxation.clone().unwrap_or_default();
             format!(
                 "force relaxes during holds with τ ≈ {:.2} s (branch stiffness {:.0} % of the spring), with memory between pushes; added a Maxwell branch to every particle joint",
                 r.tau_s,

@@ -16,8 +16,8 @@ use super::law::{LawContext, LawTerms, ParticleLaw};
 /// Reference depth of the power spring [m].
 pub const POWER_REFERENCE_DEPTH: f64 = 0.01;
 
-/// Parameters of the Maxwell branch.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// Parameters of the Maxwell branch (`Default`: no branch, ratio 0).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Relaxation {
     /// Branch stiffness relative to the particle spring (`k_m / k`).
