@@ -13,4 +13,5 @@ pub mod probe;
 pub mod robot;
 pub mod scene;
 pub mod torso;
+pub mod ultrasound;
 pub mod world;

@@ -21,6 +21,55 @@ use crate::envs::registry::EnvFactory;
 use crate::sim::controller::ArmController;
 use crate::sim::scene::Scene;
 use crate::sim::torso::Breathing;
+use crate::sim::ultrasound::{ImageStats, Imager, ImagingFrame};
+use crate::sim::world::arr3;
+
+/// Info keys the arena appends when the ultrasound image is on.
+pub const ULTRASOUND_INFO_KEYS: [&str; 4] = [
+    "us_coupled",
+    "us_quality",
+    "us_target_fraction",
+    "us_target_cnr",
+];
+
+/// The probe's B-mode imager and its latest image.
+struct Ultrasound {
+    imager: Imager,
+    image: Vec<u8>,
+    stats: ImageStats,
+    /// Index of the `ultrasound` field in the spec.
+    field: usize,
+}
+
+impl Ultrasound {
+    /// Image the scene's torso from the probe as it is now.
+    fn render(&mut self, scene: &Scene) {
+        let Some(torso) = scene.torso() else {
+            return;
+        };
+        let tip = scene.tip_pose();
+        let frame = ImagingFrame {
+            origin: arr3(tip.translation),
+            lateral: arr3(tip.rotation * rapier3d::prelude::Vector::Y),
+            axis: arr3(tip.rotation * rapier3d::prelude::Vector::Z),
+            half_width: scene.params().probe.face.half_width,
+        };
+        self.stats = self.imager.render(torso, &frame, &mut self.image);
+    }
+
+    fn write_info(&self, info: &mut [f32]) {
+        let s = &self.stats;
+        let values = [
+            s.coupled_fraction,
+            s.useful_fraction,
+            s.target_fraction,
+            s.target_cnr,
+        ];
+        for (slot, v) in info.iter_mut().zip(values) {
+            *slot = v as f32;
+        }
+    }
+}
 
 /// A task's logic on top of the arena.
 pub trait Task: Send + Sized + 'static {
@@ -76,6 +125,7 @@ pub struct ArenaEnv<T: Task> {
     rng: Pcg64Mcg,
     physics_steps: usize,
     recorder: Option<EpisodeRecorder>,
+    ultrasound: Option<Ultrasound>,
 }
 
 impl<T: Task> ArenaEnv<T> {
@@ -92,6 +142,22 @@ impl<T: Task> ArenaEnv<T> {
             .record
             .as_ref()
             .map(|r| EpisodeRecorder::new(&r.dir, T::Config::ID, r.episodes));
+        let ultrasound = match (&config.ultrasound, &config.torso) {
+            (Some(us), Some(torso)) => {
+                let camera_fields: usize = config
+                    .cameras
+                    .iter()
+                    .map(|c| usize::from(c.rgb) + usize::from(c.depth))
+                    .sum();
+                Some(Ultrasound {
+                    imager: Imager::new(us.clone(), torso.size),
+                    image: vec![0; us.rows * us.lines],
+                    stats: ImageStats::default(),
+                    field: config.observations.len() + camera_fields,
+                })
+            }
+            _ => None,
+        };
         Ok(Self {
             pristine: scene.clone(),
             scene,
@@ -100,6 +166,7 @@ impl<T: Task> ArenaEnv<T> {
             rng: Pcg64Mcg::from_rng(&mut rand::rng()),
             physics_steps,
             recorder,
+            ultrasound,
             config,
         })
     }
@@ -148,6 +215,13 @@ impl<T: Task> ArenaEnv<T> {
         }
         self.observe(out);
     }
+
+    /// Form this step's ultrasound image (before the reward, which may use it).
+    fn image(&mut self) {
+        if let Some(us) = &mut self.ultrasound {
+            us.render(&self.scene);
+        }
+    }
 }
 
 impl<T: Task> Env for ArenaEnv<T> {
@@ -169,6 +243,7 @@ impl<T: Task> Env for ArenaEnv<T> {
             self.scene.sync_torso_collider();
             self.scene.world_mut().update_queries();
         }
+        self.image();
         self.write_observation(out);
     }
 
@@ -184,7 +259,11 @@ impl<T: Task> Env for ArenaEnv<T> {
                 recorder.sample(&self.scene);
             }
         }
-        let transition = self.task.evaluate(&self.config, &self.scene, out.info());
+        self.image();
+        let mut transition = self.task.evaluate(&self.config, &self.scene, out.info());
+        if let (Some(us), Some(c)) = (&self.ultrasound, &self.config.ultrasound) {
+            transition.reward += (c.reward_weight * us.stats.useful_fraction) as f32;
+        }
         self.write_observation(out);
         transition
     }
@@ -201,6 +280,10 @@ impl<T: Task> Env for ArenaEnv<T> {
             &errors,
             out,
         );
+        if let Some(us) = &self.ultrasound {
+            out.u8_field(us.field).copy_from_slice(&us.image);
+            us.write_info(&mut out.info()[T::info_keys().len()..]);
+        }
     }
 }
 
@@ -252,8 +335,22 @@ impl<T: Task> EnvFactory for ArenaFactory<T> {
             particles,
             T::TASK_ERRORS,
         );
+        if let Some(us) = &config.ultrasound {
+            builder = builder.field(
+                "ultrasound",
+                echogym_protocol::DType::Uint8,
+                &[us.rows, us.lines],
+                Some(0.0),
+                Some(255.0),
+            );
+        }
         for key in T::info_keys() {
             builder = builder.info_key(key);
+        }
+        if config.ultrasound.is_some() {
+            for key in ULTRASOUND_INFO_KEYS {
+                builder = builder.info_key(key);
+            }
         }
         let resolved = serde_json::to_value(&config).expect("config serializes");
         Ok(builder.config(resolved).build())

@@ -13,6 +13,7 @@ use crate::sim::ft_sensor::FtSensorParams;
 use crate::sim::probe::ProbeParams;
 use crate::sim::scene::{RobotKind, SceneParams};
 use crate::sim::torso::{BreathingParams, TorsoParams};
+use crate::sim::ultrasound::UltrasoundConfig;
 
 /// A task's own settings and identity.
 pub trait TaskConfig:
@@ -71,6 +72,9 @@ pub struct ArenaConfig<T: TaskConfig> {
     pub observations: Vec<Observation>,
     /// Cameras (each adds `<name>_rgb` and/or `<name>_depth` fields).
     pub cameras: Vec<CameraConfig>,
+    /// B-mode ultrasound image from the probe (`null`: off); adds the `ultrasound`
+    /// field (uint8 `[rows, lines]`) and the `us_*` info values.
+    pub ultrasound: Option<UltrasoundConfig>,
     /// Record episodes (`null`: off).
     pub record: Option<RecordConfig>,
     /// The task's own settings.
@@ -106,6 +110,7 @@ impl<T: TaskConfig> ArenaConfig<T> {
                 Observation::TaskErrors,
             ],
             cameras: Vec::new(),
+            ultrasound: None,
             record: None,
             task,
         }
@@ -152,6 +157,13 @@ impl<T: TaskConfig> ArenaConfig<T> {
                 "observations",
                 "without `torso_particles` when there is no torso".into(),
             ));
+        }
+        if let Some(us) = &self.ultrasound {
+            us.validate(2.0 * self.probe.face.half_length)
+                .map_err(|e| wrap(e.key, e.message))?;
+            if self.torso.is_none() {
+                return Err(wrap("ultrasound", "only with a torso".into()));
+            }
         }
         if let Some(record) = &self.record {
             check_range(id, "record.episodes", record.episodes, 1, 1_000_000)?;

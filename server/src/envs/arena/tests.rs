@@ -272,3 +272,78 @@ fn breathing_makes_a_held_probe_feel_the_breathing_rate() {
         "force oscillates without breathing"
     );
 }
+
+/// Row (4 cm and deeper) of the brightest mean echo across the central lines.
+fn brightest_deep_row(image: &[u8], lines: usize) -> usize {
+    let row_mean = |r: usize| {
+        (lines / 4..3 * lines / 4)
+            .map(|l| f64::from(image[r * lines + l]))
+            .sum::<f64>()
+    };
+    let rows = image.len() / lines;
+    (rows / 3..rows)
+        .max_by(|&a, &b| row_mean(a).total_cmp(&row_mean(b)))
+        .unwrap()
+}
+
+#[test]
+fn ultrasound_follows_contact_and_deformation_in_a_real_press() {
+    let config = serde_json::json!({
+        "task": {"site": "center", "hold_time": 0.2},
+        "ultrasound": {"cameras_are_not_needed": null},
+    });
+    let registry = EnvRegistry::default();
+    let factory = registry.get("echogym/CalibrationPress-v0").unwrap();
+    let err = factory.spec(&map(config)).unwrap_err().to_string();
+    assert!(err.contains("cameras_are_not_needed"), "{err}");
+
+    let config = serde_json::json!({
+        "task": {"site": "center", "hold_time": 0.2},
+        "ultrasound": {},
+    });
+    let (spec, mut env) = make("echogym/CalibrationPress-v0", config);
+    let field = spec.field("ultrasound").unwrap().clone();
+    assert_eq!(field.shape, vec![128, 128]);
+    let keys = &spec.info_keys;
+    let key = |name: &str| keys.iter().position(|k| k == name).unwrap();
+    let (coupled, quality, depth) = (key("us_coupled"), key("us_quality"), key("depth"));
+    let mut record = vec![0u8; spec.obs_record_bytes];
+    let mut info = vec![0.0f32; keys.len()];
+    env.reset(
+        Some(3),
+        &mut EnvOutput::new(&spec.observation, &mut record, &mut info),
+    );
+    // Probe above the skin: no signal at all.
+    let image = |record: &[u8]| record[field.offset..field.offset + field.byte_len()].to_vec();
+    assert!(image(&record).iter().all(|&v| v == 0));
+    assert_eq!(info[coupled], 0.0);
+    // Press: the image appears on contact, and deep echoes rise as the tissue compresses.
+    let mut first_contact: Option<(f32, usize)> = None;
+    let mut deepest = (0.0f32, 0usize);
+    for _ in 0..4000 {
+        let t = env.step(
+            &vec![0.0; spec.action.size],
+            &mut EnvOutput::new(&spec.observation, &mut record, &mut info),
+        );
+        if info[coupled] > 0.95 && info[depth] > 0.001 {
+            let row = brightest_deep_row(&image(&record), 128);
+            first_contact.get_or_insert((info[depth], row));
+            if info[depth] > deepest.0 {
+                deepest = (info[depth], row);
+            }
+            assert!(info[quality] > 0.5, "coupled but quality {}", info[quality]);
+        }
+        if t.terminated {
+            break;
+        }
+    }
+    let (d0, r0) = first_contact.expect("the press never coupled the probe");
+    let (d1, r1) = deepest;
+    assert!(d1 - d0 > 0.01, "pressed only {d0} → {d1} m");
+    // The vertebra's top (87 mm at rest) is imaged at ≈ 87·(1 + w/H) mm: ≈ 1 row up per
+    // 1.1 mm pressed.
+    assert!(
+        r1 + 6 <= r0,
+        "deep echo at row {r0} at {d0} m, row {r1} at {d1} m"
+    );
+}
