@@ -8,7 +8,12 @@ env-steps/s per server core:
   (a) UltrasoundScan-v0, Panda, OSC_POSE, 20 Hz control (25 physics steps/step), 8 envs;
   (b) the same at 500 Hz control (1 physics step/step), batches of 16 envs;
   (c) (a) plus one 64×64 depth camera per env (`front`);
-  (d) PushCube-v0 at 20 Hz, 8 envs (rigid cube, no torso), for reference.
+  (d) PushCube-v0 at 20 Hz, 8 envs (rigid cube, no torso), for reference;
+  (e) UltrasoundScan-v0 at 20 Hz under the hybrid force/motion controller (the probe
+      stays on the skin), without and with the 128×128 `ultrasound` image (the image
+      target: within 2× of the cost without; the mean `us_coupled` is reported).
+Imaging alone: `--ultrasound-json` (benches/ultrasound.rs, one core) gives images/s with
+the probe coupled on the skin (every line formed), 128×128 and 256×256.
 robosuite side (benches/envs_robosuite.py in benches/.venv-peers, one process, one core):
 `Lift` Panda OSC_POSE at 20 Hz and UR5e OSC_POSE at 500 Hz.
 Each figure is the median of `--repeats` runs of `--seconds`. Prints a markdown table,
@@ -32,6 +37,7 @@ from bench_server import BenchServer, machine_description
 from echogym.gym_vector import EchoVectorEnv
 
 TARGETS = {"scan_20hz": 400.0, "scan_500hz_batch16": 8000.0, "scan_20hz_depth64": 200.0}
+HYBRID_20HZ = {"kind": "hybrid_force_motion", "control_freq": 20.0}
 SERVER_CPU, CLIENT_CPU = 1, 0
 
 # Episodes end only at the horizon, like robosuite's `ignore_done=True` in the peer run;
@@ -52,7 +58,13 @@ WORKLOADS = {
     "scan_20hz_early_termination": ("echogym/UltrasoundScan-v0", 8,
                                     {"controller": {"control_freq": 20.0}}),
     "push_cube_20hz": ("echogym/PushCube-v0", 8, {}),
+    "scan_20hz_hybrid": ("echogym/UltrasoundScan-v0", 8,
+                         {"controller": HYBRID_20HZ, "task": NO_EARLY_END}),
+    "scan_20hz_hybrid_ultrasound128": (
+        "echogym/UltrasoundScan-v0", 8,
+        {"controller": HYBRID_20HZ, "task": NO_EARLY_END, "ultrasound": {}}),
 }
+COUPLED: dict[str, list[float]] = {}
 
 
 def pin_process(pid: int, cpu: int) -> None:
@@ -62,8 +74,10 @@ def pin_process(pid: int, cpu: int) -> None:
         os.sched_setaffinity(int(tid), {cpu})
 
 
-def env_steps_per_s(server: str, env_id: str, num_envs: int, config: dict, seconds: float) -> float:
-    """Step a batch with random actions for `seconds`; env-steps/s."""
+def env_steps_per_s(server: str, env_id: str, num_envs: int, config: dict, seconds: float,
+                    name: str = "") -> float:
+    """Step a batch with random actions for `seconds`; env-steps/s. With the ultrasound
+    image, the mean `us_coupled` of the last step goes to COUPLED[name]."""
     envs = EchoVectorEnv(env_id, num_envs, server=server, **config)
     rng = np.random.default_rng(0)
     actions = [rng.uniform(-0.3, 0.3, envs.action_space.shape).astype(np.float32) for _ in range(16)]
@@ -72,9 +86,11 @@ def env_steps_per_s(server: str, env_id: str, num_envs: int, config: dict, secon
         envs.step(actions[k % 16])
     steps, started = 0, time.perf_counter()
     while time.perf_counter() - started < seconds:
-        envs.step(actions[steps % 16])
+        _, _, _, _, info = envs.step(actions[steps % 16])
         steps += 1
     elapsed = time.perf_counter() - started
+    if "us_coupled" in info:
+        COUPLED.setdefault(name, []).append(float(np.mean(info["us_coupled"])))
     envs.close()
     return steps * num_envs / elapsed
 
@@ -98,6 +114,7 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--no-peers", action="store_true", help="skip robosuite")
+    parser.add_argument("--ultrasound-json", help="output of the ultrasound imaging bench")
     args = parser.parse_args()
     os.sched_setaffinity(0, {CLIENT_CPU})
 
@@ -107,7 +124,8 @@ def main() -> None:
         for name, (env_id, n, config) in WORKLOADS.items():
             runs[name] = []
             for _ in range(args.repeats):
-                runs[name].append(env_steps_per_s(server.name, env_id, n, config, args.seconds))
+                runs[name].append(
+                    env_steps_per_s(server.name, env_id, n, config, args.seconds, name))
                 print(f"{name}: {runs[name][-1]:,.0f} env-steps/s", file=sys.stderr)
     os.sched_setaffinity(0, set(range(os.cpu_count() or 1)))
     peers = None if args.no_peers else robosuite(args.seconds, args.repeats)
@@ -120,6 +138,8 @@ def main() -> None:
         ("UltrasoundScan-v0 20 Hz with the seed's early termination (resets every few steps)",
          "scan_20hz_early_termination"),
         ("PushCube-v0 Panda OSC_POSE 20 Hz, 8 envs", "push_cube_20hz"),
+        ("UltrasoundScan-v0 hybrid force/motion 20 Hz, 8 envs, no images", "scan_20hz_hybrid"),
+        ("the same + 128×128 `ultrasound` image", "scan_20hz_hybrid_ultrasound128"),
     ]
     lines = [
         f"Machine: {machine_description()}. echogym server pinned to 1 core (1 worker thread), "
@@ -133,6 +153,25 @@ def main() -> None:
         verdict = "" if target is None else f"≥ {target:,.0f} ({'met' if med[key] >= target else 'MISSED'})"
         lines.append(f"| {label} | {med[key]:,.0f} | {', '.join(f'{r:,.0f}' for r in runs[key])} | {verdict} |")
     result = {"echogym": {k: {"median": med[k], "runs": v} for k, v in runs.items()}, "robosuite": peers}
+    image_cost = med["scan_20hz_hybrid"] / med["scan_20hz_hybrid_ultrasound128"]
+    coupled = statistics.median(COUPLED.get("scan_20hz_hybrid_ultrasound128", [float("nan")]))
+    lines += [
+        "",
+        f"Ultrasound image at 20 Hz: the env costs {image_cost:.2f}× its cost without images "
+        f"(target ≤ 2×; mean us_coupled at the end of the runs {coupled:.2f}).",
+    ]
+    result["ultrasound_cost_ratio"] = image_cost
+    result["ultrasound_mean_coupled"] = coupled
+    if args.ultrasound_json:
+        with open(args.ultrasound_json) as f:
+            imaging = json.load(f)
+        result["imaging"] = imaging
+        i128, i256 = imaging["images_per_s_128"], imaging["images_per_s_256"]
+        lines.append(
+            f"Imaging alone, one core, probe coupled (every line formed): 128×128 "
+            f"{i128['median']:,.0f} images/s (runs {', '.join(f'{r:,.0f}' for r in i128['runs'])}; "
+            f"target ≥ 500: {'met' if i128['median'] >= 500 else 'MISSED'}), 256×256 "
+            f"{i256['median']:,.0f} images/s.")
     if peers:
         lift20 = peers["lift_panda_osc_20hz"]["median"]
         ur500 = peers["lift_ur5e_osc_500hz"]["median"]
@@ -158,6 +197,9 @@ def main() -> None:
     with open("benches/results/envs.json", "w") as f:
         json.dump(result, f, indent=2)
     kv = " ".join(f"{k}={v:.0f}" for k, v in med.items())
+    kv += f" ultrasound_cost_ratio={image_cost:.2f}"
+    if args.ultrasound_json:
+        kv += f" images_per_s_128={result['imaging']['images_per_s_128']['median']:.0f}"
     if peers:
         kv += f" ratio_vs_lift={result['ratio_scan20_vs_lift20']:.2f}"
     print(f"RESULT {kv}")

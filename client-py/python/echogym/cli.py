@@ -1,5 +1,6 @@
 """The ``echogym`` console script: the Rust CLI (serve, status, stop, envs, calibrate)
-in-process, plus ``echogym demo`` (the force-controlled sweep demo, in Python); after a
+in-process, plus ``echogym demo`` (the force-controlled sweep demo, in Python) and
+``echogym ultrasound`` (figures of the synthetic B-mode image); after a
 successful ``echogym calibrate DATASET --out OUT`` it draws the report's plots."""
 
 from __future__ import annotations
@@ -17,6 +18,10 @@ def main(argv: list[str] | None = None) -> int:
         from echogym.demo import main as demo_main
 
         return demo_main(argv[2:])
+    if len(argv) > 1 and argv[1] == "ultrasound":
+        from echogym.ultrasound import main as ultrasound_main
+
+        return ultrasound_main(argv[2:])
     code = cli_main(argv)
     if code == 0 and len(argv) > 2 and argv[1] == "calibrate" and argv[2] != "synth" and "--out" in argv:
         from echogym.calibration import plot_report
@@ -25,7 +30,8 @@ def main(argv: list[str] | None = None) -> int:
         paths = plot_report(out)
         print("plots: " + ", ".join(str(p) for p in paths))
     if len(argv) > 1 and argv[1] in ("-h", "--help", "help"):
-        print("\nAlso: echogym demo [--help]   the force-controlled ultrasound sweep demo")
+        print("\nAlso: echogym demo [--help]         the force-controlled ultrasound sweep demo"
+              "\n      echogym ultrasound [--help]   B-mode image figures: press, sites, sweep")
     return code
 
 

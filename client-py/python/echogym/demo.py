@@ -9,7 +9,8 @@ randomized per env.
 
 Prints a progress bar, then force tracking (share of the in-contact time within ±1 N of
 the target), sweep completion and env-steps/s; writes ``force.png`` (contact force vs
-time against the target), ``frames.png`` (camera frames) and ``summary.json`` to
+time against the target), ``frames.png`` (camera frames and the probe's B-mode
+ultrasound image, from a twin of env 0) and ``summary.json`` to
 ``--out``. Exit code 0 when the sweep met the ±1 N / 80 % criterion, else 1.
 """
 
@@ -89,7 +90,7 @@ def run(num_envs: int, horizon: int, seed: int, server: str | None, robot: str,
         {"name": "side", "width": camera_size, "height": camera_size, "depth": False},
         {"name": "probe", "width": camera_size, "height": camera_size, "rgb": False},
     ]
-    viewer = EchoVectorEnv(ENV_ID, 1, cameras=cameras, **common)
+    viewer = EchoVectorEnv(ENV_ID, 1, cameras=cameras, ultrasound={}, **common)
     dt = envs.echo_spec["dt_s"]
     keys = envs.echo_spec["info_keys"]
     obs, info = envs.reset(seed=seed)
@@ -99,7 +100,7 @@ def run(num_envs: int, horizon: int, seed: int, server: str | None, robot: str,
     progress_at_end = np.zeros(num_envs)
     ended = np.zeros(num_envs, bool)
     termination = np.zeros(num_envs)
-    frames: list[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = []
+    frames: list[tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
     frame_steps = set(np.linspace(0, horizon - 1, 4).astype(int))
     started = time.perf_counter()
     for step in range(horizon):
@@ -120,7 +121,7 @@ def run(num_envs: int, horizon: int, seed: int, server: str | None, robot: str,
         ended |= done
         if step in frame_steps:
             frames.append((step * dt, np.array(view["front_rgb"][0]), np.array(view["side_rgb"][0]),
-                           np.array(view["probe_depth"][0])))
+                           np.array(view["probe_depth"][0]), np.array(view["ultrasound"][0])))
         if progress and (step % 25 == 0 or step == horizon - 1):
             elapsed = time.perf_counter() - started
             rate = (step + 1) * num_envs / elapsed
@@ -181,14 +182,18 @@ def write_figures(result: dict, out: Path) -> list[Path]:
     plt.close(fig)
 
     frames = result["_frames"]
-    fig, axes = plt.subplots(3, len(frames), figsize=(2.4 * len(frames), 7.4))
-    for k, (time_s, front, side, depth) in enumerate(frames):
+    fig, axes = plt.subplots(4, len(frames), figsize=(2.4 * len(frames), 10.4),
+                             gridspec_kw={"height_ratios": [1, 1, 1, 1.4]})
+    for k, (time_s, front, side, depth, ultrasound) in enumerate(frames):
         axes[0, k].imshow(front)
         axes[0, k].set_title(f"front, t = {time_s:.2f} s", fontsize=8)
         axes[1, k].imshow(side)
         axes[1, k].set_title("side", fontsize=8)
         axes[2, k].imshow(depth, cmap="viridis_r", vmin=0.0, vmax=0.2)
         axes[2, k].set_title("probe camera, depth 0-0.2 m", fontsize=8)
+        # 40 mm aperture × 120 mm depth (the defaults), drawn to scale.
+        axes[3, k].imshow(ultrasound, cmap="gray", vmin=0, vmax=255, extent=[-20, 20, 120, 0])
+        axes[3, k].set_title("ultrasound (B-mode)", fontsize=8)
         for a in axes[:, k]:
             a.axis("off")
     fig.tight_layout()
