@@ -9,9 +9,10 @@ env-steps/s per server core:
   (b) the same at 500 Hz control (1 physics step/step), batches of 16 envs;
   (c) (a) plus one 64×64 depth camera per env (`front`);
   (d) PushCube-v0 at 20 Hz, 8 envs (rigid cube, no torso), for reference;
-  (e) UltrasoundScan-v0 at 20 Hz under the hybrid force/motion controller (the probe
-      stays on the skin), without and with the 128×128 `ultrasound` image (the image
-      target: within 2× of the cost without; the mean `us_coupled` is reported).
+  (e) UltrasoundScan-v0 at 20 Hz under the hybrid force/motion controller holding 5 N
+      with zero motion actions (the probe stays on the skin, so every scan line is
+      formed: the image's worst case), without and with the 128×128 `ultrasound` image
+      (target: within 2× of the cost without; the mean `us_coupled` is reported).
 Imaging alone: `--ultrasound-json` (benches/ultrasound.rs, one core) gives images/s with
 the probe coupled on the skin (every line formed), 128×128 and 256×256.
 robosuite side (benches/envs_robosuite.py in benches/.venv-peers, one process, one core):
@@ -64,6 +65,9 @@ WORKLOADS = {
         "echogym/UltrasoundScan-v0", 8,
         {"controller": HYBRID_20HZ, "task": NO_EARLY_END, "ultrasound": {}}),
 }
+# Amplitude of the uniform random actions per workload (default 0.3); the hybrid
+# workloads hold the probe on the skin.
+ACTION_SCALE = {"scan_20hz_hybrid": 0.0, "scan_20hz_hybrid_ultrasound128": 0.0}
 COUPLED: dict[str, list[float]] = {}
 
 
@@ -75,12 +79,13 @@ def pin_process(pid: int, cpu: int) -> None:
 
 
 def env_steps_per_s(server: str, env_id: str, num_envs: int, config: dict, seconds: float,
-                    name: str = "") -> float:
+                    name: str = "", scale: float = 0.3) -> float:
     """Step a batch with random actions for `seconds`; env-steps/s. With the ultrasound
     image, the mean `us_coupled` of the last step goes to COUPLED[name]."""
     envs = EchoVectorEnv(env_id, num_envs, server=server, **config)
     rng = np.random.default_rng(0)
-    actions = [rng.uniform(-0.3, 0.3, envs.action_space.shape).astype(np.float32) for _ in range(16)]
+    actions = [rng.uniform(-scale, scale, envs.action_space.shape).astype(np.float32)
+               for _ in range(16)]
     envs.reset(seed=0)
     for k in range(5):
         envs.step(actions[k % 16])
@@ -125,7 +130,8 @@ def main() -> None:
             runs[name] = []
             for _ in range(args.repeats):
                 runs[name].append(
-                    env_steps_per_s(server.name, env_id, n, config, args.seconds, name))
+                    env_steps_per_s(server.name, env_id, n, config, args.seconds, name,
+                                    ACTION_SCALE.get(name, 0.3)))
                 print(f"{name}: {runs[name][-1]:,.0f} env-steps/s", file=sys.stderr)
     os.sched_setaffinity(0, set(range(os.cpu_count() or 1)))
     peers = None if args.no_peers else robosuite(args.seconds, args.repeats)
@@ -138,7 +144,8 @@ def main() -> None:
         ("UltrasoundScan-v0 20 Hz with the seed's early termination (resets every few steps)",
          "scan_20hz_early_termination"),
         ("PushCube-v0 Panda OSC_POSE 20 Hz, 8 envs", "push_cube_20hz"),
-        ("UltrasoundScan-v0 hybrid force/motion 20 Hz, 8 envs, no images", "scan_20hz_hybrid"),
+        ("UltrasoundScan-v0 hybrid force/motion 20 Hz holding 5 N, 8 envs, no images",
+         "scan_20hz_hybrid"),
         ("the same + 128×128 `ultrasound` image", "scan_20hz_hybrid_ultrasound128"),
     ]
     lines = [
