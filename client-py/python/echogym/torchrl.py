@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import warnings
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -48,6 +49,10 @@ class EchoEnv(EnvBase):
         device: Where tensors are returned (default CPU).
         copy_observations: Copy observations out of shared memory (default true); see
             the module docs for the zero-copy mode.
+        info_keys: Info values to return next to the observations, each a float32
+            entry of shape ``[num_envs]`` named by its key (``"is_success"``,
+            ``"contact_force"``, ...); ``True`` returns every key the env declares.
+            Default none (what ``check_env_specs`` and collectors need is unchanged).
         **config: Env config; unknown keys raise :class:`echogym.InvalidConfigError`.
     """
 
@@ -60,6 +65,7 @@ class EchoEnv(EnvBase):
         autostart: bool = True,
         device: Any = "cpu",
         copy_observations: bool = True,
+        info_keys: Sequence[str] | bool = (),
         **config: Any,
     ) -> None:
         super().__init__(device=device, batch_size=torch.Size([num_envs]))
@@ -70,6 +76,13 @@ class EchoEnv(EnvBase):
         self.autostart = autostart
         self.config = config
         self.echo_spec: dict[str, Any] = json.loads(resolve_spec(env_id, json.dumps(config)))
+        declared: list[str] = self.echo_spec["info_keys"]
+        keys = declared if info_keys is True else list(info_keys or ())
+        unknown = [k for k in keys if k not in declared]
+        if unknown:
+            raise ValueError(f"{env_id} has no info keys {unknown}; it declares {declared}")
+        self.info_keys = keys
+        self._info_index = [declared.index(k) for k in keys]
         self._lease: NativeLease | None = None
         self._seeds: list[int | None] | None = None
         self._make_specs()
@@ -86,6 +99,8 @@ class EchoEnv(EnvBase):
                 )
             else:
                 obs[field["name"]] = Unbounded(shape=shape, dtype=dtype, device=self.device)
+        for key in self.info_keys:
+            obs[key] = Unbounded(shape=(n,), dtype=torch.float32, device=self.device)
         self.observation_spec = Composite(obs, shape=(n,), device=self.device)
         action = self.echo_spec["action"]
         self.action_spec = Bounded(
@@ -127,14 +142,19 @@ class EchoEnv(EnvBase):
                 tensor = tensor.clone()
             out[field["name"]] = tensor
 
+    def _info(self, info: np.ndarray, out: dict[str, torch.Tensor]) -> None:
+        for key, column in zip(self.info_keys, self._info_index):
+            out[key] = torch.tensor(info[:, column], dtype=torch.float32, device=self.device)
+
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs: Any) -> TensorDictBase:
         mask = None
         if tensordict is not None and "_reset" in tensordict.keys():
             mask = tensordict.get("_reset").reshape(self.num_envs).cpu().numpy().astype(bool)
         seeds, self._seeds = self._seeds, None
-        fields, *_ = self.lease.reset(mask, seeds)
+        fields, _, _, _, info, _, _ = self.lease.reset(mask, seeds)
         out: dict[str, torch.Tensor] = {}
         self._obs(fields, out)
+        self._info(info, out)
         zeros = torch.zeros((self.num_envs, 1), dtype=torch.bool, device=self.device)
         out["done"] = zeros
         out["terminated"] = zeros.clone()
@@ -143,11 +163,12 @@ class EchoEnv(EnvBase):
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         action = tensordict.get("action").detach().to("cpu", torch.float32).numpy()
-        fields, reward, terminated, truncated, _, _, _ = self.lease.step(
+        fields, reward, terminated, truncated, info, _, _ = self.lease.step(
             np.ascontiguousarray(action)
         )
         out: dict[str, torch.Tensor] = {}
         self._obs(fields, out)
+        self._info(info, out)
         term = _tensor(terminated).reshape(self.num_envs, 1).to(self.device, copy=True)
         trunc = _tensor(truncated).reshape(self.num_envs, 1).to(self.device, copy=True)
         out["reward"] = _tensor(reward).reshape(self.num_envs, 1).to(self.device, copy=True)

@@ -1,0 +1,132 @@
+"""The PPO networks: a running observation normaliser, a Gaussian actor with a
+state-independent log standard deviation (stable-baselines3's default, so the seed's
+[256, 128] networks behave as they did there) and a value network.
+
+The normaliser lives inside the networks as buffers, so a checkpoint carries it and the
+collectors' weight sync (``TensorDict.from_module``, which includes buffers) ships it to
+every worker process with the weights; the trainer updates it only between PPO updates,
+so the log-probabilities stored at collection time stay valid for the update.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import torch
+from tensordict.nn import TensorDictModule
+from torch import nn
+from torchrl.data import Bounded
+from torchrl.modules import IndependentNormal, ProbabilisticActor, ValueOperator
+
+_ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
+
+
+class RunningNorm(nn.Module):
+    """``(x − mean) / std`` with running moments (parallel Welford), clipped to ±``clip``."""
+
+    def __init__(self, size: int, clip: float = 10.0, eps: float = 1e-8) -> None:
+        super().__init__()
+        self.clip = clip
+        self.eps = eps
+        self.register_buffer("mean", torch.zeros(size))
+        self.register_buffer("var", torch.ones(size))
+        self.register_buffer("count", torch.tensor(1e-4, dtype=torch.float64))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return ((x - self.mean) / torch.sqrt(self.var + self.eps)).clamp(-self.clip, self.clip)
+
+    @torch.no_grad()
+    def update(self, x: torch.Tensor) -> None:
+        """Fold a batch ``[..., size]`` into the moments (in place: views stay valid)."""
+        x = x.reshape(-1, self.mean.numel()).to(self.mean.device, torch.float64)
+        n = x.shape[0]
+        if n == 0:
+            return
+        batch_mean = x.mean(0)
+        batch_var = x.var(0, unbiased=False)
+        total = self.count + n
+        delta = batch_mean - self.mean.double()
+        mean = self.mean.double() + delta * n / total
+        m2 = self.var.double() * self.count + batch_var * n + delta.square() * self.count * n / total
+        self.mean.copy_(mean.float())
+        self.var.copy_((m2 / total).float())
+        self.count.copy_(total)
+
+
+def mlp(inputs: int, hidden: Sequence[int], outputs: int, activation: str) -> nn.Sequential:
+    """``inputs → hidden... → outputs`` with ``activation`` between layers."""
+    act = _ACTIVATIONS[activation]
+    layers: list[nn.Module] = []
+    size = inputs
+    for width in hidden:
+        layers += [nn.Linear(size, width), act()]
+        size = width
+    layers.append(nn.Linear(size, outputs))
+    return nn.Sequential(*layers)
+
+
+class GaussianPolicyNet(nn.Module):
+    """Normalised observation → (loc, scale) of a diagonal Gaussian."""
+
+    def __init__(
+        self, obs_size: int, action_size: int, hidden: Sequence[int], activation: str, log_std: float
+    ) -> None:
+        super().__init__()
+        self.norm = RunningNorm(obs_size)
+        self.body = mlp(obs_size, hidden, action_size, activation)
+        self.log_std = nn.Parameter(torch.full((action_size,), float(log_std)))
+        # Small last layer: the initial policy's mean is ≈ 0 (SB3 and the PPO papers do this).
+        last = self.body[-1]
+        assert isinstance(last, nn.Linear)
+        nn.init.orthogonal_(last.weight, gain=0.01)
+        nn.init.zeros_(last.bias)
+
+    def forward(self, observation: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        loc = self.body(self.norm(observation))
+        scale = self.log_std.clamp(-5.0, 2.0).exp().expand_as(loc)
+        return loc, scale
+
+
+class ValueNet(nn.Module):
+    """Normalised observation → state value."""
+
+    def __init__(self, obs_size: int, hidden: Sequence[int], activation: str) -> None:
+        super().__init__()
+        self.norm = RunningNorm(obs_size)
+        self.body = mlp(obs_size, hidden, 1, activation)
+
+    def forward(self, observation: torch.Tensor) -> torch.Tensor:
+        return self.body(self.norm(observation))
+
+
+def make_actor(
+    obs_size: int,
+    action_spec: Bounded,
+    hidden: Sequence[int],
+    activation: str = "tanh",
+    log_std: float = 0.0,
+) -> ProbabilisticActor:
+    """The stochastic policy: ``"observation"`` → ``"action"`` (+ ``"action_log_prob"``).
+
+    Actions are unsquashed Gaussian samples (the server clips them to the action bounds,
+    as SB3 does); the deterministic action is the mean.
+    """
+    net = GaussianPolicyNet(obs_size, action_spec.shape[-1], hidden, activation, log_std)
+    module = TensorDictModule(net, in_keys=["observation"], out_keys=["loc", "scale"])
+    return ProbabilisticActor(
+        module,
+        spec=action_spec,
+        in_keys=["loc", "scale"],
+        distribution_class=IndependentNormal,
+        return_log_prob=True,
+    )
+
+
+def make_critic(obs_size: int, hidden: Sequence[int], activation: str = "tanh") -> ValueOperator:
+    """The value network: ``"observation"`` → ``"state_value"``."""
+    return ValueOperator(ValueNet(obs_size, hidden, activation), in_keys=["observation"])
+
+
+def norms(module: nn.Module) -> list[RunningNorm]:
+    """Every :class:`RunningNorm` inside ``module``."""
+    return [m for m in module.modules() if isinstance(m, RunningNorm)]
