@@ -1,6 +1,7 @@
 """The ``echogym`` console script: the Rust CLI (serve, status, stop, envs, calibrate)
-in-process, plus ``echogym demo`` (the force-controlled sweep demo, in Python) and
-``echogym ultrasound`` (figures of the synthetic B-mode image); after a
+in-process, plus ``echogym demo`` (the force-controlled sweep demo, in Python),
+``echogym ultrasound`` (figures of the synthetic B-mode image) and ``echogym train``
+(PPO with torchrl, :mod:`echogym.train`); after a
 successful ``echogym calibrate DATASET --out OUT`` it draws the report's plots."""
 
 from __future__ import annotations
@@ -18,6 +19,10 @@ def main(argv: list[str] | None = None) -> int:
         from echogym.demo import main as demo_main
 
         return demo_main(argv[2:])
+    if len(argv) > 1 and argv[1] == "train":
+        from echogym.train.cli import main as train_main
+
+        return train_main(argv[2:])
     if len(argv) > 1 and argv[1] == "ultrasound":
         from echogym.ultrasound import main as ultrasound_main
 
@@ -31,7 +36,8 @@ def main(argv: list[str] | None = None) -> int:
         print("plots: " + ", ".join(str(p) for p in paths))
     if len(argv) > 1 and argv[1] in ("-h", "--help", "help"):
         print("\nAlso: echogym demo [--help]         the force-controlled ultrasound sweep demo"
-              "\n      echogym ultrasound [--help]   B-mode image figures: press, sites, sweep")
+              "\n      echogym ultrasound [--help]   B-mode image figures: press, sites, sweep"
+              "\n      echogym train [--help]        PPO training with torchrl (docs/training.md)")
     return code
 
 
