@@ -160,8 +160,14 @@ pub fn replay(setup: &Setup, model: &Model, recording: &Recording, index: usize)
         };
     };
     let breathing = model.breathing.is_some();
-    if let Some((freq, amplitude)) = model.breathing {
+    if let Some((common_freq, amplitude)) = model.breathing {
         let phase = model.breathing_phase.get(index).copied().unwrap_or(0.0);
+        // Each recording breathes at its own rate (the rate drifts between recordings).
+        let freq = model
+            .breathing_freq
+            .get(index)
+            .copied()
+            .unwrap_or(common_freq);
         let law = Breathing::new(
             BreathingParams {
                 rate_bpm: freq * 60.0,
