@@ -1,0 +1,146 @@
+"""Is the training stack the bottleneck? ``python -m echogym.train.throughput`` measures,
+against one server, env-steps/s of
+
+- ``raw``: one process stepping all ``workers × envs_per_worker`` envs through the
+  gymnasium vector env (zero-copy, random actions in ±0.3, same-step autoreset: the
+  envs benchmark's method), and
+- ``collector``: torchrl's ``MultiSyncCollector`` with ``workers`` worker processes of
+  ``envs_per_worker`` envs each, the default PPO actor choosing the actions (inference,
+  transforms and the collector's copies included; no PPO update),
+
+and prints their ratio. Both use the same server (``--threads`` worker threads) and the
+same number of envs, so the ratio is what the collector costs on top of the envs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from typing import Any
+
+import numpy as np
+import torch
+
+
+def raw_rate(env_id: str, num_envs: int, config: dict[str, Any], server: str,
+             seconds: float) -> float:
+    """Env-steps/s of one vector env of ``num_envs`` envs, random actions in ±0.3."""
+    from echogym.gym_vector import EchoVectorEnv
+
+    env = EchoVectorEnv(env_id, num_envs, server=server, **config)
+    rng = np.random.default_rng(0)
+    actions = [
+        rng.uniform(-0.3, 0.3, size=(num_envs, env.single_action_space.shape[0])).astype(np.float32)
+        for _ in range(16)
+    ]
+    env.reset(seed=0)
+    for i in range(20):
+        env.step(actions[i % 16])
+    steps = 0
+    start = time.monotonic()
+    while time.monotonic() - start < seconds:
+        env.step(actions[steps % 16])
+        steps += 1
+    elapsed = time.monotonic() - start
+    env.close()
+    return steps * num_envs / elapsed
+
+
+def collector_rate(env_id: str, workers: int, envs_per_worker: int, config: dict[str, Any],
+                   server: str, batches: int, steps_per_batch: int = 64) -> float:
+    """Env-steps/s of a ``MultiSyncCollector`` driven by the default PPO actor."""
+    from torchrl.collectors import MultiSyncCollector
+
+    from echogym.train.config import TrainConfig
+    from echogym.train.envs import default_obs_keys, env_factory
+    from echogym.train.ppo import build_networks
+
+    cfg = TrainConfig(env_id=env_id, env_config=config)
+    actor, _ = build_networks(cfg)
+    make_env = env_factory(env_id, envs_per_worker, config, default_obs_keys(env_id, config),
+                           server)
+    frames = workers * envs_per_worker * steps_per_batch
+    warmup = 2
+    collector = MultiSyncCollector([make_env] * workers, actor, frames_per_batch=frames,
+                                   total_frames=frames * (batches + warmup), device="cpu")
+    count = 0
+    start = 0.0
+    try:
+        for i, data in enumerate(collector):
+            if i == warmup - 1:
+                start = time.monotonic()
+            elif i >= warmup:
+                count += data.numel()
+        elapsed = time.monotonic() - start
+    finally:
+        collector.shutdown()
+    return count / elapsed
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m echogym.train.throughput",
+                                     description=__doc__.split("\n\n")[0])
+    parser.add_argument("--env-id", default="echogym/PushCube-v0")
+    parser.add_argument("--env-config", type=json.loads, default={})
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--envs-per-worker", type=int, default=16)
+    parser.add_argument("--seconds", type=float, default=15.0, help="raw measurement time")
+    parser.add_argument("--batches", type=int, default=8, help="measured collector batches")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--server", default=None,
+                        help="a running server (default: a private one with --threads)")
+    parser.add_argument("--threads", type=int, default=0, help="private server's threads")
+    args = parser.parse_args(argv)
+    torch.set_num_threads(1)
+
+    server = args.server
+    private = None
+    if server is None:
+        import subprocess
+
+        server = f"throughput-{os.getpid()}"
+        private = subprocess.Popen(
+            [sys.executable, "-m", "echogym", "serve", "--name", server, "--log", "warn",
+             "--threads", str(args.threads), "--exit-with-parent", str(os.getpid())],
+            stdin=subprocess.DEVNULL,
+        )
+        from echogym.client import connect
+
+        deadline = time.monotonic() + 30
+        while True:
+            try:
+                connect(server)
+                break
+            except Exception:
+                if time.monotonic() > deadline:
+                    raise
+                time.sleep(0.05)
+    try:
+        total = args.workers * args.envs_per_worker
+        results = []
+        for repeat in range(args.repeats):
+            raw = raw_rate(args.env_id, total, args.env_config, server, args.seconds)
+            coll = collector_rate(args.env_id, args.workers, args.envs_per_worker,
+                                  args.env_config, server, args.batches)
+            row = {"repeat": repeat, "raw_env_steps_per_s": round(raw, 1),
+                   "collector_env_steps_per_s": round(coll, 1), "ratio": round(coll / raw, 3)}
+            results.append(row)
+            print(json.dumps(row), flush=True)
+        med = {
+            key: float(np.median([r[key] for r in results]))
+            for key in ("raw_env_steps_per_s", "collector_env_steps_per_s", "ratio")
+        }
+        print(json.dumps({"env_id": args.env_id, "workers": args.workers,
+                          "envs_per_worker": args.envs_per_worker, "median": med}), flush=True)
+    finally:
+        if private is not None:
+            private.terminate()
+            private.wait(timeout=15)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
