@@ -78,6 +78,10 @@ enum CalibrateCommand {
         /// Generator seed.
         #[arg(long, default_value_t = 0)]
         seed: u64,
+        /// Effect size relative to the physiological ranges (e.g. 0.25 to probe the
+        /// detection limit); in (0, 2].
+        #[arg(long, default_value_t = 1.0)]
+        scale: f64,
         /// Output folder.
         #[arg(long)]
         out: PathBuf,
@@ -194,8 +198,14 @@ pub fn main_with_args(args: impl IntoIterator<Item = OsString>) -> u8 {
 
 fn calibrate(args: CalibrateArgs) -> Result<(), String> {
     use crate::calibrate::{CalibrateOptions, synth};
-    if let Some(CalibrateCommand::Synth { effects, seed, out }) = args.synth {
-        let truth = synth::generate(&effects, seed, &out).map_err(|e| e.to_string())?;
+    if let Some(CalibrateCommand::Synth {
+        effects,
+        seed,
+        scale,
+        out,
+    }) = args.synth
+    {
+        let truth = synth::generate(&effects, seed, scale, &out).map_err(|e| e.to_string())?;
         println!(
             "wrote {} ({} recordings; truth in {})",
             out.join("dataset").display(),

@@ -58,6 +58,9 @@ pub enum SynthError {
     /// An effect name is not in the catalogue.
     #[error("unknown effect {0:?}; known: {known}", known = EFFECTS.join(", "))]
     UnknownEffect(String),
+    /// The effect scale is out of range.
+    #[error("--scale must be in (0, 2], got {0}")]
+    Scale(f64),
     /// Writing failed.
     #[error(transparent)]
     Write(#[from] RecordingsError),
@@ -88,6 +91,8 @@ pub struct Truth {
     pub noise_n: f64,
     /// The generator's seed.
     pub seed: u64,
+    /// Effect size scale (1: the physiological ranges).
+    pub scale: f64,
     /// Per recording: file, site, protocol, rate.
     pub recordings: Vec<serde_json::Value>,
 }
@@ -183,8 +188,19 @@ impl PathBuilder {
 }
 
 /// Generate a dataset with `effects` concealed into `out/dataset`, truth in
-/// `out/truth.json`; returns the truth.
-pub fn generate(effects: &[String], seed: u64, out: &Path) -> Result<Truth, SynthError> {
+/// `out/truth.json`; returns the truth. `scale` multiplies each effect's size (its
+/// departure from the baseline: exponent − 1, relaxing stiffness, added mass, breathing
+/// amplitude, bias, delay, the odd site's stiffness − 1) after drawing, so the same
+/// seed gives the same dataset otherwise: `scale` < 1 probes detection limits.
+pub fn generate(
+    effects: &[String],
+    seed: u64,
+    scale: f64,
+    out: &Path,
+) -> Result<Truth, SynthError> {
+    if !(scale > 0.0 && scale <= 2.0) {
+        return Err(SynthError::Scale(scale));
+    }
     for e in effects {
         if !EFFECTS.contains(&e.as_str()) {
             return Err(SynthError::UnknownEffect(e.clone()));
@@ -205,43 +221,44 @@ pub fn generate(effects: &[String], seed: u64, out: &Path) -> Result<Truth, Synt
         } else {
             rng.random_range(0.6..0.72)
         };
+        site_scale[a] = 1.0 + scale * (site_scale[a] - 1.0);
     }
     let model = TruthModel {
         stiffness,
         site_scale,
         damping: rng.random_range(8.0..16.0),
         exponent: if has("nonlinear_stiffness") {
-            rng.random_range(1.4..2.0)
+            1.0 + scale * (rng.random_range(1.4..2.0) - 1.0)
         } else {
             1.0
         },
         maxwell: has("viscoelastic_relaxation").then(|| {
             (
-                rng.random_range(0.4..0.8) * stiffness,
+                scale * rng.random_range(0.4..0.8) * stiffness,
                 rng.random_range(0.5..3.0),
             )
         }),
         moving_mass: rng.random_range(0.03..0.08)
             + if has("tissue_inertia") {
-                rng.random_range(1.5..3.0)
+                scale * rng.random_range(1.5..3.0)
             } else {
                 0.0
             },
         breathing: has("breathing_motion").then(|| {
             (
                 rng.random_range(0.2..0.33),
-                rng.random_range(0.002..0.004),
+                scale * rng.random_range(0.002..0.004),
                 rng.random_range(0.0..0.05),
             )
         }),
         bias: if has("sensor_bias") {
-            let b: f64 = rng.random_range(0.5..2.0);
+            let b: f64 = scale * rng.random_range(0.5..2.0);
             if rng.random_bool(0.5) { b } else { -b }
         } else {
             0.0
         },
         delay: if has("sensor_delay") {
-            rng.random_range(0.02..0.06)
+            scale * rng.random_range(0.02..0.06)
         } else {
             0.0
         },
@@ -347,6 +364,7 @@ pub fn generate(effects: &[String], seed: u64, out: &Path) -> Result<Truth, Synt
         surface_offset_m: model.surface_z - NOMINAL_Z,
         noise_n: model.noise,
         seed,
+        scale,
         recordings: listed,
     };
     let path = out.join("truth.json");
