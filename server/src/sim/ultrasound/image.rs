@@ -334,6 +334,10 @@ impl Imager {
         self.tissue.fill(tissue_index(Tissue::Air));
         self.useful.fill(false);
         let shadow = 10f64.powf(-SHADOW_DB / 20.0);
+        // Time-gain compensation per row.
+        let gain: Vec<f64> = (0..rows)
+            .map(|row| (tgc * (row as f64 + 0.5) * dt).exp())
+            .collect();
         let mut coupled_sum = 0.0;
         for line in 0..lines {
             let s = -c.aperture / 2.0 + (line as f64 + 0.5) * c.aperture / lines as f64;
@@ -389,7 +393,7 @@ impl Imager {
                     let here = amp * (-kappa * (t - seg.t0)).exp();
                     let k = row * lines + line;
                     self.tissue[k] = label;
-                    let excess = here * (tgc * t).exp();
+                    let excess = here * gain[row];
                     self.useful[k] = body && coupling >= MIN_COUPLING && excess >= shadow;
                     if let Some(level) = backscatter {
                         let p: [f64; 3] = std::array::from_fn(|j| a[j] + t * b[j]);
@@ -437,9 +441,8 @@ impl Imager {
                 amp *= 1.0 - r;
             }
             // Time-gain compensation on this line.
-            for row in 0..rows {
-                let t = (row as f64 + 0.5) * dt;
-                self.envelope[row * lines + line] *= (tgc * t).exp() as f32;
+            for (row, g) in gain.iter().enumerate() {
+                self.envelope[row * lines + line] *= *g as f32;
             }
         }
         self.blur();
