@@ -16,7 +16,8 @@
 //! gains (kp 1500, a position-controlled arm like the seed's UR5e).
 //!
 //! ## Observation space
-//! `Dict` of `observations` plus camera images. `task_errors` (4): depth of the tip below
+//! `Dict` of `observations` plus camera images (and the B-mode `ultrasound` image when
+//! configured). `task_errors` (4): depth of the tip below
 //! the rest surface [m], target depth of the protocol now [m], their difference [m],
 //! contact force along the probe axis [N].
 //!

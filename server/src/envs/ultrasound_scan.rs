@@ -18,8 +18,9 @@
 //!
 //! ## Observation space
 //! A `Dict` of the fields in `observations` (default `joint_pos`, `joint_vel`,
-//! `probe_pose`, `probe_vel`, `ft`, `contact`, `task_errors`) plus camera images.
-//! `task_errors` (8): tip minus target point `[dx, dy, dz]` [m] (target z = the skin's
+//! `probe_pose`, `probe_vel`, `ft`, `contact`, `task_errors`) plus camera images, and
+//! with `ultrasound` set the probe's B-mode image (`ultrasound`, uint8 `[rows, lines]`;
+//! `us_*` info; docs/ultrasound.md). `task_errors` (8): tip minus target point `[dx, dy, dz]` [m] (target z = the skin's
 //! rest height), smoothed contact force minus target [N], mean speed minus target
 //! [m/s], orientation error [rad], the target point's velocity `[vx, vy]` [m/s].
 //!
