@@ -16,6 +16,13 @@
 //! nonlinear parameter by grid search); its evidence is the RMSE reduction it brings on
 //! the **held-out** recordings, never the training fit (BIC over-selects on tens of
 //! thousands of autocorrelated samples).
+//!
+//! Two signatures are flexible enough to mimic others and carry a specificity test:
+//! breathing is fitted where the probe holds its depth (each steady stretch with its own
+//! offset) and must explain ≥ 25 % of the residual's variation there, so a depth-dependent
+//! effect cannot pass for it; site heterogeneity must give each site the same scale below
+//! and above the median depth (differences under half the sites' spread), so a nonlinear
+//! spring seen at sites pressed to different depths cannot pass for it.
 
 use super::features::Series;
 
@@ -338,7 +345,7 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], base: Base) ->
                     .zip(&rest)
                     .zip(train)
                     .filter(|(_, t)| **t)
-                    .map(|((s, r), _)| sinusoid_fit(s, r, f).0)
+                    .map(|((s, r), _)| breathing_fit(s, r, f).0)
                     .sum();
                 if sse < best.0 {
                     best = (sse, f);
@@ -355,7 +362,7 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], base: Base) ->
                     let mut b = (f64::INFINITY, f, 0.0, 0.0);
                     for k in 0..=30 {
                         let fk = f * (0.85 + 0.01 * k as f64);
-                        let (sse, a, c, _) = sinusoid_fit(s, r, fk);
+                        let (sse, a, c) = breathing_fit(s, r, fk);
                         if sse < b.0 {
                             b = (sse, fk, a, c);
                         }
@@ -372,7 +379,7 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], base: Base) ->
             let amp = train_amps.iter().sum::<f64>() / train_amps.len().max(1) as f64;
             let mut phases = Vec::new();
             let mut freqs = Vec::new();
-            let predicted = series
+            let predicted: Vec<Vec<f64>> = series
                 .iter()
                 .zip(&per)
                 .zip(&base)
@@ -404,6 +411,17 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], base: Base) ->
                         .collect()
                 })
                 .collect();
+            // Specificity: breathing moves the surface, so the force oscillates where the
+            // probe holds its depth; depth-dependent effects (a nonlinear spring) leave
+            // a constant there. The sinusoids must explain part of the training
+            // residual's variation within steady stretches.
+            let explained = steady_share_explained(series, train, &rest, &predicted, &base);
+            if std::env::var("DBG_STEADY").is_ok() {
+                eprintln!("steady share {explained:?}");
+            }
+            if explained.is_some_and(|share| share < BREATHING_STEADY_SHARE) {
+                return None;
+            }
             params.insert("freq_hz".into(), f.into());
             params.insert("amplitude_m".into(), (2.0 * amp / k_eff).into());
             params.insert("phase_rad".into(), serde_json::json!(phases));
@@ -443,6 +461,13 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], base: Base) ->
             if spread < 0.15 {
                 return None;
             }
+            // Specificity: a site's tissue scales its force at every depth; a nonlinear
+            // spring scales it by depth, and sites pressed to different depths then look
+            // different. Fitted separately below and above the median depth, each
+            // site's scale must agree with itself better than the sites differ.
+            if !site_scales_hold_across_depth(series, train, base, sites_ref, spread) {
+                return None;
+            }
             params.insert("stiffness_scale_by_site".into(), by_site.into());
             predicted
         }
@@ -453,6 +478,177 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], base: Base) ->
         params,
         predicted,
     })
+}
+
+/// Share of the residual's variation inside steady stretches that breathing must
+/// explain.
+const BREATHING_STEADY_SHARE: f64 = 0.25;
+/// A steady stretch: in contact, `|v_z|` below this [m/s] ...
+const STEADY_SPEED: f64 = 0.001;
+/// ... for at least this long [s].
+const STEADY_MIN_S: f64 = 1.0;
+
+/// Over the training series' steady stretches (in contact, depth held), each stretch's
+/// mean removed: the share of the residual `rest`'s variation that the oscillating part
+/// of `predicted` (minus `base`) explains; `None` without steady stretches.
+fn steady_share_explained(
+    series: &[Series],
+    train: &[bool],
+    rest: &[Vec<f64>],
+    predicted: &[Vec<f64>],
+    base: &[Vec<f64>],
+) -> Option<f64> {
+    let (mut total, mut left) = (0.0, 0.0);
+    for (k, s) in series.iter().enumerate().filter(|(k, _)| train[*k]) {
+        for range in steady_stretches(s) {
+            let r = &rest[k][range.clone()];
+            let p: Vec<f64> = range.map(|j| predicted[k][j] - base[k][j]).collect();
+            let n = r.len() as f64;
+            let (mr, mp) = (r.iter().sum::<f64>() / n, p.iter().sum::<f64>() / n);
+            for (a, b) in r.iter().zip(&p) {
+                total += (a - mr).powi(2);
+                left += ((a - mr) - (b - mp)).powi(2);
+            }
+        }
+    }
+    (total > 0.0).then(|| 1.0 - left / total)
+}
+
+/// Whether per-site scales fitted on shallow and on deep contact samples agree: the
+/// mean over sites of |shallow − deep| must stay under half the sites' `spread`.
+fn site_scales_hold_across_depth(
+    series: &[Series],
+    train: &[bool],
+    base: Base,
+    sites: &[String],
+    spread: f64,
+) -> bool {
+    let mut depths: Vec<f64> = series
+        .iter()
+        .zip(train)
+        .filter(|(_, t)| **t)
+        .flat_map(|(s, _)| {
+            s.depth
+                .iter()
+                .zip(&s.contact)
+                .filter(|(_, c)| **c)
+                .map(|(d, _)| *d)
+        })
+        .collect();
+    if depths.len() < 10 {
+        return true;
+    }
+    depths.sort_by(f64::total_cmp);
+    let median = depths[depths.len() / 2];
+    let (_, beta, _) = fit_shared(series, train, &[0.0], base, &|s, _| {
+        sites
+            .iter()
+            .flat_map(|site| {
+                [false, true].map(|deep| {
+                    s.predicted
+                        .iter()
+                        .zip(&s.contact)
+                        .zip(&s.depth)
+                        .map(|((f, &c), &d)| {
+                            if c && &s.site == site && (d >= median) == deep {
+                                *f
+                            } else {
+                                0.0
+                            }
+                        })
+                        .collect()
+                })
+            })
+            .collect()
+    });
+    // Only sites touched at both shallow and deep depths in training can be compared.
+    let mut samples = vec![[0usize; 2]; sites.len()];
+    for (s, _) in series.iter().zip(train).filter(|(_, t)| **t) {
+        let Some(k) = sites.iter().position(|site| site == &s.site) else {
+            continue;
+        };
+        for (&d, &c) in s.depth.iter().zip(&s.contact) {
+            if c {
+                samples[k][usize::from(d >= median)] += 1;
+            }
+        }
+    }
+    let both: Vec<usize> = (0..sites.len())
+        .filter(|&k| samples[k].iter().all(|&n| n >= MIN_BIN_SAMPLES))
+        .collect();
+    if both.len() < 2 {
+        return true;
+    }
+    let inconsistency = both
+        .iter()
+        .map(|&k| (beta[2 * k] - beta[2 * k + 1]).abs())
+        .sum::<f64>()
+        / both.len() as f64;
+    inconsistency < 0.5 * spread
+}
+
+/// Contact samples a site needs in each depth bin to enter the consistency check.
+const MIN_BIN_SAMPLES: usize = 50;
+
+/// Steady stretches of a series (in contact, depth held ≥ `STEADY_MIN_S`), as index
+/// ranges.
+fn steady_stretches(s: &Series) -> Vec<std::ops::Range<usize>> {
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < s.len() {
+        if !(s.contact[i] && s.vz[i].abs() < STEADY_SPEED) {
+            i += 1;
+            continue;
+        }
+        let start = i;
+        while i < s.len() && s.contact[i] && s.vz[i].abs() < STEADY_SPEED {
+            i += 1;
+        }
+        if s.t[i - 1] - s.t[start] >= STEADY_MIN_S {
+            out.push(start..i);
+        }
+    }
+    out
+}
+
+/// Breathing sinusoid `a·sin + b·cos` at `f` for one series: (SSE, a, b). Fitted where
+/// the probe holds its depth (each steady stretch with its own offset), so that
+/// depth-dependent effects (a nonlinear spring, relaxation's level) cannot inflate it;
+/// over all in-contact samples when the series has under 2 s of steady stretches (a
+/// chirp).
+fn breathing_fit(s: &Series, residual: &[f64], f: f64) -> (f64, f64, f64) {
+    let stretches = steady_stretches(s);
+    let steady_s: f64 = stretches
+        .iter()
+        .map(|r| s.t[r.end - 1] - s.t[r.start])
+        .sum();
+    if steady_s < 2.0 {
+        let (sse, a, b, _) = sinusoid_fit(s, residual, f);
+        return (sse, a, b);
+    }
+    let w = std::f64::consts::TAU * f;
+    let n = s.len();
+    let mut rows = vec![false; n];
+    let mut columns = vec![vec![0.0; n], vec![0.0; n]];
+    for r in &stretches {
+        let mut offset = vec![0.0; n];
+        for i in r.clone() {
+            rows[i] = true;
+            columns[0][i] = (w * s.t[i]).sin();
+            columns[1][i] = (w * s.t[i]).cos();
+            offset[i] = 1.0;
+        }
+        columns.push(offset);
+    }
+    let beta = least_squares(&columns, residual, &rows);
+    let sse = (0..n)
+        .filter(|&i| rows[i])
+        .map(|i| {
+            let fit: f64 = columns.iter().zip(&beta).map(|(c, b)| c[i] * b).sum();
+            (residual[i] - fit).powi(2)
+        })
+        .sum();
+    (sse, beta[0], beta[1])
 }
 
 /// Fit `a·sin + b·cos` at `f` to the in-contact part of `residual` (one series): (SSE,
