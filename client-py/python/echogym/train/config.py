@@ -77,6 +77,47 @@ class TrainConfig:
         return cls(**data)
 
 
+#: Help of each setting on the command line (the default is appended).
+HELP = {
+    "env_id": "echogym env id",
+    "env_config": "env config as a JSON object, e.g. '{\"robot\": \"ur5e\"}'",
+    "obs_keys": "observation fields concatenated into the policy input (default: every 1-D float field)",
+    "server": "server name (default $ECHOGYM_SERVER or 'default'; started privately if none runs)",
+    "num_workers": "collector worker processes, each with its own lease (0: collect in-process; "
+                   "with --ray-servers: workers per server)",
+    "envs_per_worker": "server-side envs stepped by each worker",
+    "frames_per_batch": "env steps per PPO iteration, summed over all envs",
+    "total_frames": "env steps of the whole run (a resumed run continues up to it)",
+    "epochs": "passes over each batch",
+    "minibatch_size": "transitions per gradient step",
+    "lr": "Adam learning rate",
+    "lr_schedule": "'constant' or 'linear' (to 0 at --total-frames)",
+    "gamma": "discount",
+    "lmbda": "GAE lambda",
+    "clip_epsilon": "PPO clip range",
+    "entropy_coef": "entropy bonus coefficient (0: off)",
+    "critic_coef": "value loss coefficient",
+    "max_grad_norm": "gradient clipping norm",
+    "hidden": "hidden layer widths of actor and critic (the seed's 256 128)",
+    "activation": "tanh, relu or elu",
+    "log_std_init": "initial log standard deviation of the Gaussian policy",
+    "normalize_observations": "running mean/std observation normalisation",
+    "success_bonus": "reward added on steps that terminate with is_success (docs/training.md)",
+    "seed": "seed of the networks, the envs and the evaluation episodes",
+    "device": "where the PPO update runs: auto (CUDA when present), cpu, cuda, cuda:1",
+    "logdir": "run directory: CSV, TensorBoard events, checkpoints, summary",
+    "checkpoint_every": "env steps between checkpoints (one is always written at the end)",
+    "eval_every": "env steps between evaluations (0: only at the end)",
+    "eval_episodes": "deterministic evaluation episodes (0: none)",
+    "eval_envs": "envs the evaluation runs on",
+    "ray_servers": "collect through Ray: one collector per named server, on that server's node",
+    "ray_address": "Ray cluster to join (auto, HOST:6379); default: start a local cluster",
+    "ray_cpus_per_collector": "Ray CPUs each remote collector asks for",
+    "progress": "show the progress bar",
+    "threads": "torch threads of the trainer process",
+}
+
+
 def _bool(text: str) -> bool:
     if text.lower() in ("1", "true", "yes", "on"):
         return True
@@ -90,7 +131,6 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m echogym.train",
         description="Train a PPO policy (torchrl) on an echogym env with multi-process collectors.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     defaults = TrainConfig()
     parser.add_argument("--config", help="JSON file of settings (flags override it)")
@@ -101,21 +141,25 @@ def build_parser() -> argparse.ArgumentParser:
     for f in dataclasses.fields(TrainConfig):
         flag = "--" + f.name.replace("_", "-")
         default = getattr(defaults, f.name)
-        helptext = (f.metadata.get("help") or "")
+        text = HELP.get(f.name, "")
+        if default is not None:
+            text += f" (default: {json.dumps(default)})"
         if f.name == "env_config":
-            parser.add_argument(flag, type=json.loads, default=None,
-                                help="env config as a JSON object, e.g. '{\"robot\": \"ur5e\"}'")
+            parser.add_argument(flag, type=json.loads, default=None, help=text)
         elif f.name in ("obs_keys", "ray_servers"):
-            parser.add_argument(flag, nargs="+", default=None,
-                                help="observation fields" if f.name == "obs_keys" else "server names")
+            parser.add_argument(flag, nargs="+", default=None, help=text)
         elif f.name == "hidden":
-            parser.add_argument(flag, type=int, nargs="+", default=None,
-                                help=f"hidden widths (default {default})")
+            parser.add_argument(flag, type=int, nargs="+", default=None, help=text)
         elif isinstance(default, bool):
-            parser.add_argument(flag, type=_bool, default=None, help=f"(default {default})")
-        elif isinstance(default, (int, float, str)) or default is None:
-            kind = type(default) if default is not None else str
-            parser.add_argument(flag, type=kind, default=None, help=helptext or f"(default {default})")
+            parser.add_argument(flag, type=_bool, default=None, help=text)
+        elif f.name == "ray_cpus_per_collector" or isinstance(default, float):
+            parser.add_argument(flag, type=float, default=None, help=text)
+        elif isinstance(default, int):
+            parser.add_argument(flag, type=int, default=None, help=text)
+        else:
+            choices = {"lr_schedule": ["constant", "linear"],
+                       "activation": ["tanh", "relu", "elu"]}.get(f.name)
+            parser.add_argument(flag, type=str, default=None, help=text, choices=choices)
     return parser
 
 
