@@ -26,7 +26,6 @@ import argparse
 import json
 import os
 import sys
-import time
 import warnings
 from collections.abc import Sequence
 from typing import Any
@@ -166,17 +165,9 @@ def measure(
         address=address,
         cpus_per_collector=cpus_per_collector,
     )
-    frames = 0
-    start = 0.0
-    try:
-        for i, data in enumerate(collector):
-            if i == warmup - 1:
-                start = time.monotonic()
-            elif i >= warmup:
-                frames += data.numel()
-    finally:
-        elapsed = time.monotonic() - start
-        collector.shutdown()
+    from echogym.train.throughput import timed_collection
+
+    frames, elapsed = timed_collection(collector, warmup)
     return {"servers": list(servers), "frames": frames, "seconds": elapsed,
             "env_steps_per_s": frames / elapsed}
 

@@ -66,18 +66,25 @@ def collector_rate(env_id: str, workers: int, envs_per_worker: int, config: dict
     warmup = 2
     collector = MultiSyncCollector([make_env] * workers, actor, frames_per_batch=frames,
                                    total_frames=frames * (batches + warmup), device="cpu")
-    count = 0
+    count, elapsed = timed_collection(collector, warmup)
+    return count / elapsed
+
+
+def timed_collection(collector: Any, warmup: int) -> tuple[int, float]:
+    """Run `collector` to its end: the frames of the batches after the first `warmup`
+    and the seconds they took (timed from the end of the last warm-up batch). Shuts the
+    collector down."""
+    frames = 0
     start = 0.0
     try:
         for i, data in enumerate(collector):
             if i == warmup - 1:
                 start = time.monotonic()
             elif i >= warmup:
-                count += data.numel()
-        elapsed = time.monotonic() - start
+                frames += data.numel()
+        return frames, time.monotonic() - start
     finally:
         collector.shutdown()
-    return count / elapsed
 
 
 def main(argv: list[str] | None = None) -> int:
