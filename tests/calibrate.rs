@@ -226,15 +226,7 @@ fn a_broken_dataset_is_refused_naming_file_and_row_and_nothing_is_written() {
 #[test]
 #[ignore = "full matrix: every effect, pairs, several seeds (≈ 30 min); results in docs/calibration.md"]
 fn full_matrix() {
-    let effects = [
-        "sensor_bias",
-        "sensor_delay",
-        "tissue_inertia",
-        "nonlinear_stiffness",
-        "viscoelastic_relaxation",
-        "breathing_motion",
-        "site_heterogeneity",
-    ];
+    let effects = echogym::calibrate::effects::CATALOGUE;
     let mut failures = Vec::new();
     for seed in [6, 7, 8] {
         let mut cases: Vec<Vec<&str>> = vec![vec![]];
