@@ -25,6 +25,7 @@
 //! spring seen at sites pressed to different depths cannot pass for it.
 
 use super::features::Series;
+use crate::sim::torso::rise_profile;
 
 /// The catalogue, in the order signatures are tried.
 pub const CATALOGUE: [&str; 7] = [
@@ -45,6 +46,10 @@ pub struct Base {
     pub k: f64,
     /// Contact damping [N·s/m].
     pub c: f64,
+    /// Torso centre, world xy [m] (for breathing's rise profile).
+    pub center_xy: [f64; 2],
+    /// Torso half-extents in x and y [m].
+    pub half_size: [f64; 2],
 }
 
 /// Reference depth of the nonlinear signature [m] (same as the power spring's).
@@ -211,6 +216,7 @@ pub fn readjusted(series: &[Series], train: &[bool], base: Base) -> Vec<Vec<f64>
 /// stiffness [N/m], to express force amplitudes as lengths).
 pub fn fit(name: &'static str, series: &[Series], train: &[bool], base: Base) -> Option<Signature> {
     let k_eff = base.k;
+    let geometry = (base.center_xy, base.half_size);
     let mut params = serde_json::Map::new();
     let predicted = match name {
         "sensor_bias" => {
@@ -345,7 +351,7 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], base: Base) ->
                     .zip(&rest)
                     .zip(train)
                     .filter(|(_, t)| **t)
-                    .map(|((s, r), _)| breathing_fit(s, r, f).0)
+                    .map(|((s, r), _)| breathing_fit(s, r, Chirp::steady(f, s.t[0])).0)
                     .sum();
                 if sse < best.0 {
                     best = (sse, f);
@@ -355,55 +361,107 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], base: Base) ->
             if f <= grid[0] + 1e-9 || f >= grid[grid.len() - 1] - 1e-9 {
                 return None;
             }
-            let per: Vec<(f64, f64, f64)> = series
+            // Each recording: its own rate (±15 % of the common one) and a rate that may
+            // change linearly across it (a drifting rate, ±12 % over the recording),
+            // refined coordinate-wise.
+            let per: Vec<(Chirp, f64, f64)> = series
                 .iter()
                 .zip(&rest)
                 .map(|(s, r)| {
-                    let mut b = (f64::INFINITY, f, 0.0, 0.0);
+                    let t_ref = s.t[0];
+                    let span = (s.t[s.len() - 1] - t_ref).max(1.0);
+                    let mut best = (f64::INFINITY, Chirp::steady(f, t_ref), 0.0, 0.0);
+                    let consider = |best: &mut (f64, Chirp, f64, f64), chirp: Chirp| {
+                        let (sse, a, c) = breathing_fit(s, r, chirp);
+                        if sse < best.0 {
+                            *best = (sse, chirp, a, c);
+                        }
+                    };
                     for k in 0..=30 {
-                        let fk = f * (0.85 + 0.01 * k as f64);
-                        let (sse, a, c) = breathing_fit(s, r, fk);
-                        if sse < b.0 {
-                            b = (sse, fk, a, c);
+                        consider(
+                            &mut best,
+                            Chirp::steady(f * (0.85 + 0.01 * k as f64), t_ref),
+                        );
+                    }
+                    for _ in 0..2 {
+                        let f0 = best.1.freq;
+                        for k in -6..=6 {
+                            let slope = f0 * 0.02 * k as f64 / span;
+                            consider(&mut best, Chirp::steady(f0, t_ref).with_slope(slope));
+                        }
+                        let slope = best.1.slope;
+                        for k in -5..=5 {
+                            let freq = f0 * (1.0 + 0.004 * k as f64);
+                            consider(&mut best, Chirp::steady(freq, t_ref).with_slope(slope));
                         }
                     }
-                    (b.1, b.2, b.3)
+                    (best.1, best.2, best.3)
                 })
                 .collect();
-            let train_amps: Vec<f64> = per
+            // The rise differs across the top (a dome, or a top rising as one): each
+            // training recording's rise, fitted as a centre amplitude times the
+            // profile at where it was recorded; held-out recordings take theirs from
+            // that profile.
+            let profile = |s: &Series, edge: f64| {
+                let (centre, half) = geometry;
+                rise_profile([s.xy[0] - centre[0], s.xy[1] - centre[1]], half, edge)
+            };
+            let rises: Vec<(f64, &Series)> = per
                 .iter()
+                .zip(series)
                 .zip(train)
                 .filter(|(_, t)| **t)
-                .map(|((_, a, c), _)| a.hypot(*c))
+                .map(|((&(_, a, c), s), _)| (2.0 * a.hypot(c) / k_eff, s))
                 .collect();
-            let amp = train_amps.iter().sum::<f64>() / train_amps.len().max(1) as f64;
+            let mut shape = (f64::INFINITY, 0.0, 0.0);
+            for k in 0..=20 {
+                let edge = k as f64 / 20.0;
+                let (rg, gg) = rises.iter().fold((0.0, 0.0), |(rg, gg), (r, s)| {
+                    let g = profile(s, edge);
+                    (rg + r * g, gg + g * g)
+                });
+                let centre = rg / gg.max(1e-12);
+                let sse: f64 = rises
+                    .iter()
+                    .map(|(r, s)| (r - centre * profile(s, edge)).powi(2))
+                    .sum();
+                if sse < shape.0 - 1e-15 {
+                    shape = (sse, edge, centre);
+                }
+            }
+            let (_, edge_rise, centre_rise) = shape;
             let mut phases = Vec::new();
             let mut freqs = Vec::new();
+            let mut slopes = Vec::new();
             let predicted: Vec<Vec<f64>> = series
                 .iter()
                 .zip(&per)
                 .zip(&base)
                 .enumerate()
-                .map(|(k, ((s, &(fk, a, c)), b))| {
-                    // Held-out recordings keep only their phase: the amplitude is the
-                    // training recordings' mean.
+                .map(|(k, ((s, &(chirp, a, c)), b))| {
+                    // Held-out recordings keep only their phase and rate: the amplitude is
+                    // the profile's.
                     let norm = a.hypot(c).max(1e-12);
+                    let amp = 0.5 * k_eff * centre_rise * profile(s, edge_rise);
                     let (a, c) = if train[k] {
                         (a, c)
                     } else {
                         (a / norm * amp, c / norm * amp)
                     };
-                    // Force ≈ k·A(1 − cos φ)/2 with φ = φ₀ + 2πf·t, so the fitted
-                    // a·sin + b·cos gives φ₀ = atan2(a, −b); stored at the first sample.
-                    phases.push(a.atan2(-c) + std::f64::consts::TAU * fk * s.t[0]);
-                    freqs.push(fk);
-                    let w = std::f64::consts::TAU * fk;
+                    // Force ≈ k·A(1 − cos ψ)/2 with ψ = ψ₀ + φ(t), so the fitted
+                    // a·sin φ + b·cos φ gives ψ₀ = atan2(a, −b); stored at the first
+                    // sample, with the rate there (the chirp's reference is the first
+                    // sample).
+                    phases.push(a.atan2(-c) + chirp.phase(s.t[0]));
+                    freqs.push(chirp.freq);
+                    slopes.push(chirp.slope);
                     s.t.iter()
                         .zip(&s.contact)
                         .zip(b)
-                        .map(|((t, &on), b)| {
+                        .map(|((&t, &on), b)| {
+                            let phase = chirp.phase(t);
                             b + if on {
-                                a * (w * t).sin() + c * (w * t).cos()
+                                a * phase.sin() + c * phase.cos()
                             } else {
                                 0.0
                             }
@@ -423,9 +481,14 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], base: Base) ->
                 return None;
             }
             params.insert("freq_hz".into(), f.into());
-            params.insert("amplitude_m".into(), (2.0 * amp / k_eff).into());
+            params.insert("amplitude_m".into(), centre_rise.into());
+            params.insert("edge_rise".into(), edge_rise.into());
             params.insert("phase_rad".into(), serde_json::json!(phases));
             params.insert("freq_by_recording_hz".into(), serde_json::json!(freqs));
+            params.insert(
+                "rate_slope_by_recording_hz_s".into(),
+                serde_json::json!(slopes),
+            );
             predicted
         }
         "site_heterogeneity" => {
@@ -611,22 +674,21 @@ fn steady_stretches(s: &Series) -> Vec<std::ops::Range<usize>> {
     out
 }
 
-/// Breathing sinusoid `a·sin + b·cos` at `f` for one series: (SSE, a, b). Fitted where
+/// Breathing oscillation `a·sin φ + b·cos φ` (φ the chirp's phase) for one series: (SSE, a, b). Fitted where
 /// the probe holds its depth (each steady stretch with its own offset), so that
 /// depth-dependent effects (a nonlinear spring, relaxation's level) cannot inflate it;
 /// over all in-contact samples when the series has under 2 s of steady stretches (a
 /// chirp).
-fn breathing_fit(s: &Series, residual: &[f64], f: f64) -> (f64, f64, f64) {
+fn breathing_fit(s: &Series, residual: &[f64], chirp: Chirp) -> (f64, f64, f64) {
     let stretches = steady_stretches(s);
     let steady_s: f64 = stretches
         .iter()
         .map(|r| s.t[r.end - 1] - s.t[r.start])
         .sum();
     if steady_s < 2.0 {
-        let (sse, a, b, _) = sinusoid_fit(s, residual, f);
+        let (sse, a, b, _) = sinusoid_fit(s, residual, chirp);
         return (sse, a, b);
     }
-    let w = std::f64::consts::TAU * f;
     let n = s.len();
     let mut rows = vec![false; n];
     let mut columns = vec![vec![0.0; n], vec![0.0; n]];
@@ -634,8 +696,9 @@ fn breathing_fit(s: &Series, residual: &[f64], f: f64) -> (f64, f64, f64) {
         let mut offset = vec![0.0; n];
         for i in r.clone() {
             rows[i] = true;
-            columns[0][i] = (w * s.t[i]).sin();
-            columns[1][i] = (w * s.t[i]).cos();
+            let phase = chirp.phase(s.t[i]);
+            columns[0][i] = phase.sin();
+            columns[1][i] = phase.cos();
             offset[i] = 1.0;
         }
         columns.push(offset);
@@ -651,20 +714,52 @@ fn breathing_fit(s: &Series, residual: &[f64], f: f64) -> (f64, f64, f64) {
     (sse, beta[0], beta[1])
 }
 
-/// Fit `a·sin + b·cos` at `f` to the in-contact part of `residual` (one series): (SSE,
-/// a, b, prediction).
-fn sinusoid_fit(s: &Series, residual: &[f64], f: f64) -> (f64, f64, f64, Vec<f64>) {
-    let w = std::f64::consts::TAU * f;
+/// A breathing oscillation whose rate changes linearly: rate `freq + slope·(t − t_ref)`.
+#[derive(Debug, Clone, Copy)]
+struct Chirp {
+    /// Rate at `t_ref` [Hz].
+    freq: f64,
+    /// Rate change [Hz/s].
+    slope: f64,
+    /// Reference time [s].
+    t_ref: f64,
+}
+
+impl Chirp {
+    /// A constant rate.
+    fn steady(freq: f64, t_ref: f64) -> Self {
+        Self {
+            freq,
+            slope: 0.0,
+            t_ref,
+        }
+    }
+
+    /// The same with rate change `slope` [Hz/s].
+    fn with_slope(self, slope: f64) -> Self {
+        Self { slope, ..self }
+    }
+
+    /// Phase at `t` [rad] (0 at `t_ref`).
+    fn phase(&self, t: f64) -> f64 {
+        let tau = t - self.t_ref;
+        std::f64::consts::TAU * (self.freq * tau + 0.5 * self.slope * tau * tau)
+    }
+}
+
+/// Fit `a·sin φ + b·cos φ` (φ the chirp's phase) to the in-contact part of `residual`
+/// (one series): (SSE, a, b, prediction).
+fn sinusoid_fit(s: &Series, residual: &[f64], chirp: Chirp) -> (f64, f64, f64, Vec<f64>) {
     let mask = contact_mask(s);
     let sin: Vec<f64> =
         s.t.iter()
             .zip(&mask)
-            .map(|(t, m)| m * (w * t).sin())
+            .map(|(&t, m)| m * chirp.phase(t).sin())
             .collect();
     let cos: Vec<f64> =
         s.t.iter()
             .zip(&mask)
-            .map(|(t, m)| m * (w * t).cos())
+            .map(|(&t, m)| m * chirp.phase(t).cos())
             .collect();
     let rows = vec![true; s.len()];
     let beta = least_squares(&[sin.clone(), cos.clone()], residual, &rows);

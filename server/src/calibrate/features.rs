@@ -37,6 +37,8 @@ pub struct Series {
     pub az: Vec<f64>,
     /// Sample period [s].
     pub dt: f64,
+    /// Mean probe position in contact, world xy [m] (all samples without contact).
+    pub xy: [f64; 2],
 }
 
 impl Series {
@@ -65,7 +67,16 @@ impl Series {
             .zip(&prediction.fz)
             .map(|(m, p)| m - p)
             .collect();
+        let touching: Vec<usize> = (0..n).filter(|&i| prediction.contact[i]).collect();
+        let used: Vec<usize> = if touching.is_empty() {
+            (0..n).collect()
+        } else {
+            touching
+        };
+        let xy = [0, 1]
+            .map(|axis| used.iter().map(|&i| rec.p[i][axis]).sum::<f64>() / used.len() as f64);
         Self {
+            xy,
             index,
             file: file.to_owned(),
             site: site.to_owned(),

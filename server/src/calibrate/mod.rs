@@ -209,6 +209,8 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
             effects::Base {
                 k: k_now,
                 c: k_now * calibrated.damping / calibrated.stiffness,
+                center_xy: setup.center_xy,
+                half_size: [setup.torso.size[0] / 2.0, setup.torso.size[1] / 2.0],
             },
             noise,
             &skip,
@@ -675,6 +677,8 @@ fn apply_effects(model: &mut Model, accepted: &[report::Accepted], setup: &Setup
                 };
                 model.breathing_phase = list("phase_rad");
                 model.breathing_freq = list("freq_by_recording_hz");
+                model.breathing_rate_slope = list("rate_slope_by_recording_hz_s");
+                model.breathing_edge_rise = num(a, "edge_rise");
             }
             "site_heterogeneity" => {
                 if let Some(map) = a

@@ -41,6 +41,14 @@ pub struct Model {
     /// Breathing rate of each recording [Hz] (the rate drifts between recordings; empty:
     /// the common rate).
     pub breathing_freq: Vec<f64>,
+    /// Breathing rise at the torso's edges as a share of the centre's (see
+    /// `BreathingParams::edge_rise`).
+    #[serde(default)]
+    pub breathing_edge_rise: f64,
+    /// Linear change of each recording's breathing rate [Hz/s] (a rate drifting within
+    /// the recording; empty: steady).
+    #[serde(default)]
+    pub breathing_rate_slope: Vec<f64>,
     /// Tissue mass moving with the probe [kg].
     pub moving_mass: f64,
     /// Constant force offset of the sensor, world z [N].
@@ -63,6 +71,8 @@ impl Model {
             breathing: None,
             breathing_phase: Vec::new(),
             breathing_freq: Vec::new(),
+            breathing_rate_slope: Vec::new(),
+            breathing_edge_rise: 0.0,
             moving_mass: 0.0,
             bias: 0.0,
             delay: 0.0,
@@ -168,16 +178,23 @@ pub fn replay(setup: &Setup, model: &Model, recording: &Recording, index: usize)
             .get(index)
             .copied()
             .unwrap_or(common_freq);
+        let slope = model
+            .breathing_rate_slope
+            .get(index)
+            .copied()
+            .unwrap_or(0.0);
         let law = Breathing::new(
             BreathingParams {
                 rate_bpm: freq * 60.0,
                 amplitude,
                 rate_drift: 0.0,
                 phase,
+                edge_rise: model.breathing_edge_rise,
             },
             &torso,
             0,
-        );
+        )
+        .map(|law| law.with_rate_slope(slope));
         if let Ok(law) = law {
             let u = law.equilibrium();
             torso.set_state(&u, &vec![0.0; u.len()]);

@@ -79,6 +79,7 @@ fn model_json(m: &Model) -> serde_json::Value {
         "relaxation": m.relaxation,
         "breathing_freq_hz": m.breathing.map(|b| b.0),
         "breathing_amplitude_m": m.breathing.map(|b| b.1),
+        "breathing_edge_rise": m.breathing.map(|_| m.breathing_edge_rise),
         "moving_mass_kg": m.moving_mass,
         "sensor_bias_fz_n": m.bias,
         "sensor_delay_s": m.delay,
@@ -99,7 +100,7 @@ fn calibrated_params(name: &str, m: &Model, site_stiffness: &[(String, f64)]) ->
         }
         "breathing_motion" => {
             let (f, a) = m.breathing.unwrap_or((0.0, 0.0));
-            serde_json::json!({"freq_hz": f, "amplitude_m": a})
+            serde_json::json!({"freq_hz": f, "amplitude_m": a, "edge_rise": m.breathing_edge_rise})
         }
         "site_heterogeneity" => {
             let by: serde_json::Map<String, serde_json::Value> = site_stiffness
@@ -223,6 +224,8 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
         breathing: m.breathing.map(|(f, a)| BreathingParams {
             rate_bpm: f * 60.0,
             amplitude: a,
+            rate_drift: rate_spread(&m.breathing_freq, f),
+            edge_rise: m.breathing_edge_rise,
             ..BreathingParams::default()
         }),
         ft_sensor: ft,
@@ -295,9 +298,10 @@ fn effect_sentence(name: &str, m: &Model, site_stiffness: &[(String, f64)]) -> S
         "breathing_motion" => {
             let (f, a) = m.breathing.unwrap_or((0.0, 0.0));
             format!(
-                "the surface moves periodically at {f:.3} Hz ({:.1} breaths/min, ≈ {:.1} mm); added breathing driving the torso's top",
+                "the surface moves periodically at {f:.3} Hz ({:.1} breaths/min, ≈ {:.1} mm at the centre, {:.0} % of that at the edges); added breathing driving the torso's top",
                 f * 60.0,
-                1000.0 * a
+                1000.0 * a,
+                100.0 * m.breathing_edge_rise
             )
         }
         "site_heterogeneity" => {
@@ -423,4 +427,17 @@ fn markdown(
         );
     }
     s
+}
+
+/// Relative standard deviation of the recordings' breathing rates about `common` (the
+/// drift the calibrated breathing law should have); the law's default without rates.
+fn rate_spread(rates: &[f64], common: f64) -> f64 {
+    if rates.len() < 2 || common <= 0.0 {
+        return BreathingParams::default().rate_drift;
+    }
+    let relative: Vec<f64> = rates.iter().map(|r| r / common - 1.0).collect();
+    let mean = relative.iter().sum::<f64>() / relative.len() as f64;
+    let var =
+        relative.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (relative.len() - 1) as f64;
+    var.sqrt().min(0.5)
 }

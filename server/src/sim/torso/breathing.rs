@@ -2,8 +2,8 @@
 //! particle joints (the seed's "outward forces on the upper layer").
 //!
 //! Each top particle `i` gets an outward force `a(t)·d_i` on top of its spring-damper,
-//! where `d_i = g·k_i·s(x, y)`: `k_i` its spring stiffness, `s` a smooth dome (1 at the
-//! centre, 0 at the edges: `cos(π/2·x/hx)·cos(π/2·y/hy)` in torso-centred coordinates),
+//! where `d_i = g·k_i·s(x, y)`: `k_i` its spring stiffness, `s` the rise profile (see
+//! [`rise_profile`]: a smooth dome, 1 at the centre, falling to `edge_rise` at the edges),
 //! and `g` calibrated from the torso's static response so the centre of the top rests at
 //! exactly `a(t)` above its rest height. The drive adds its own volume to the torso's rest
 //! volume (inhaled air), so volume preservation does not fight it. Because the drive is a
@@ -37,6 +37,9 @@ pub struct BreathingParams {
     pub rate_drift: f64,
     /// Phase at t = 0 [rad] (0: fully exhaled). Default 0.
     pub phase: f64,
+    /// Rise at the top's edges as a share of the centre's, in [0, 1]: 0 a dome (the
+    /// belly rises, the flanks stay), 1 the whole top rising together. Default 0.
+    pub edge_rise: f64,
 }
 
 impl Default for BreathingParams {
@@ -46,6 +49,7 @@ impl Default for BreathingParams {
             amplitude: 0.005,
             rate_drift: 0.05,
             phase: 0.0,
+            edge_rise: 0.0,
         }
     }
 }
@@ -78,8 +82,23 @@ impl BreathingParams {
         if !self.phase.is_finite() {
             return err("phase", "finite", self.phase);
         }
+        if !(0.0..=1.0).contains(&self.edge_rise) {
+            return err("edge_rise", "in [0, 1]", self.edge_rise);
+        }
         Ok(())
     }
+}
+
+/// Relative rise of the top at `xy` from the torso's centre (half-extents `half`):
+/// `e + (1 − e)·cos(π/2·x/hx)·cos(π/2·y/hy)` with `e` = `edge_rise`; 1 at the centre.
+pub fn rise_profile(xy: [f64; 2], half: [f64; 2], edge_rise: f64) -> f64 {
+    let cx = (std::f64::consts::FRAC_PI_2 * xy[0] / half[0])
+        .cos()
+        .max(0.0);
+    let cy = (std::f64::consts::FRAC_PI_2 * xy[1] / half[1])
+        .cos()
+        .max(0.0);
+    edge_rise + (1.0 - edge_rise) * cx * cy
 }
 
 /// The breathing law (see the module docs).
@@ -91,6 +110,8 @@ pub struct Breathing {
     volume_per_metre: f64,
     phase: f64,
     drift: f64,
+    rate_slope: f64,
+    elapsed: f64,
     rng: Pcg64Mcg,
 }
 
@@ -113,9 +134,7 @@ impl Breathing {
         for (i, s) in shape.iter_mut().enumerate().take(layout.top_len()) {
             let x = layout.rest[i][0] - p.center_xy[0];
             let y = layout.rest[i][1] - p.center_xy[1];
-            let cx = (std::f64::consts::FRAC_PI_2 * x / hx).cos().max(0.0);
-            let cy = (std::f64::consts::FRAC_PI_2 * y / hy).cos().max(0.0);
-            *s = cx * cy;
+            *s = rise_profile([x, y], [hx, hy], params.edge_rise);
             if x.hypot(y) < nearest {
                 nearest = x.hypot(y);
                 centre = i;
@@ -142,8 +161,18 @@ impl Breathing {
             phase: params.phase,
             params,
             drift: 0.0,
+            rate_slope: 0.0,
+            elapsed: 0.0,
             rng: Pcg64Mcg::seed_from_u64(seed),
         })
+    }
+
+    /// The same breathing with a rate that changes linearly by `slope` [Hz/s] from now
+    /// on (on top of the random drift): how calibration replays a recording whose rate
+    /// drifted. Over long runs the rate stays ≥ 10 % of the nominal one.
+    pub fn with_rate_slope(mut self, slope: f64) -> Self {
+        self.rate_slope = slope;
+        self
     }
 
     /// The parameters.
@@ -165,7 +194,8 @@ impl Breathing {
 
     /// Current breathing rate [Hz] (with drift).
     pub fn rate_hz(&self) -> f64 {
-        self.params.rate_bpm / 60.0 * (1.0 + self.drift).max(0.1)
+        let nominal = self.params.rate_bpm / 60.0;
+        (nominal * (1.0 + self.drift) + self.rate_slope * self.elapsed).max(0.1 * nominal)
     }
 }
 
@@ -184,6 +214,7 @@ impl ParticleLaw for Breathing {
 
     fn advance(&mut self, ctx: &LawContext<'_>) {
         self.phase += 2.0 * std::f64::consts::PI * self.rate_hz() * ctx.dt;
+        self.elapsed += ctx.dt;
         if self.params.rate_drift > 0.0 {
             let theta = ctx.dt / DRIFT_TIME_CONSTANT;
             let noise: f64 = StandardNormal.sample(&mut self.rng);

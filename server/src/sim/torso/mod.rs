@@ -23,7 +23,7 @@ mod tissue_laws;
 #[allow(clippy::module_inception)]
 mod torso;
 
-pub use breathing::{Breathing, BreathingParamError, BreathingParams};
+pub use breathing::{Breathing, BreathingParamError, BreathingParams, rise_profile};
 pub use contact::{ContactWrench, ProbeFace, ProbeKinematics};
 pub(crate) use contact::{add, cross, scale, sub};
 pub use law::{LawContext, LawTerms, LinearSpringDamper, ParticleLaw};
