@@ -440,9 +440,13 @@ fn pack(model: &Model, names: &[&str]) -> (Vec<f64>, Vec<Bound>) {
                 x.push(r.tau_s.ln());
                 bounds.push(b((0.01f64).ln(), (100.0f64).ln(), 0.02));
             }
-            // Breathing's amplitude stays at its signature's estimate, measured where the
-            // probe holds its depth: refitted on every sample it absorbs depth-dependent
-            // error (seen: 2.7 and 5.4 mm for a true 2.2 and 2.9 mm).
+            "breathing_motion" => {
+                let (_, amplitude) = model.breathing.unwrap_or((0.25, 0.0));
+                x.push(amplitude);
+                bounds.push(b(0.0, 0.03, 5e-5));
+                x.push(model.breathing_edge_rise);
+                bounds.push(b(0.0, 1.0, 0.02));
+            }
             "site_heterogeneity" => {
                 for (_, s) in &model.site_scale {
                     x.push(*s);
@@ -487,7 +491,13 @@ fn unpack(template: &Model, names: &[&str], x: &[f64]) -> Model {
                 });
                 k += 2;
             }
-
+            "breathing_motion" => {
+                if let Some(b) = m.breathing.as_mut() {
+                    b.1 = x[k];
+                }
+                m.breathing_edge_rise = x[k + 1];
+                k += 2;
+            }
             "site_heterogeneity" => {
                 for s in &mut m.site_scale {
                     s.1 = x[k];

@@ -8,7 +8,11 @@
 //! exactly `a(t)` above its rest height. The drive adds its own volume to the torso's rest
 //! volume (inhaled air), so volume preservation does not fight it. Because the drive is a
 //! force and the springs are unchanged, a probe held in place feels breathing as a force
-//! oscillating at the breathing rate.
+//! oscillating at the breathing rate. With a power spring (`exponent ≠ 1`) the drive is
+//! what it is physically, a motion of the tissue's foundation: each particle's spring
+//! acts on `u − a(t)·d_i/k_i` instead of `u`, so a probe pressed deep into stiffening
+//! tissue feels breathing more strongly than one resting on the skin (for a linear
+//! spring the two are the same force).
 //!
 //! `a(t) = A·(1 − cos φ)/2` (0 at full exhalation), `φ̇ = 2π·f(t)`, and the rate drifts
 //! slowly: `f(t) = f₀·(1 + δ(t))` with `δ` an Ornstein–Uhlenbeck process (time constant
@@ -20,6 +24,7 @@ use rand_pcg::Pcg64Mcg;
 use serde::{Deserialize, Serialize};
 
 use super::law::{LawContext, LawTerms, ParticleLaw};
+use super::tissue_laws::power_law;
 use super::torso::Torso;
 
 /// Time constant of the breathing-rate drift [s].
@@ -106,6 +111,9 @@ pub fn rise_profile(xy: [f64; 2], half: [f64; 2], edge_rise: f64) -> f64 {
 pub struct Breathing {
     params: BreathingParams,
     drive: Vec<f64>,
+    /// Particle spring stiffness [N/m] and exponent, for the foundation motion of a
+    /// power spring (`None`: linear springs).
+    power: Option<(Vec<f64>, f64)>,
     response: Vec<f64>,
     volume_per_metre: f64,
     phase: f64,
@@ -150,7 +158,18 @@ impl Breathing {
         let from_force = torso.static_response(&spring, 0.0);
         let from_volume = torso.static_response(&vec![0.0; n], volume);
         let gain = (1.0 - from_volume[centre]) / from_force[centre];
+        let exponent = p.exponent;
+        let power = ((exponent - 1.0).abs() > 1e-12).then(|| {
+            let k: Vec<f64> = torso
+                .masses()
+                .iter()
+                .zip(&layout.rest)
+                .map(|(m, r)| m * p.stiffness * p.stiffness_scale([r[0], r[1]]))
+                .collect();
+            (k, exponent)
+        });
         Ok(Self {
+            power,
             drive: spring.iter().map(|k| gain * k).collect(),
             response: from_force
                 .iter()
@@ -204,10 +223,27 @@ impl ParticleLaw for Breathing {
         "breathing"
     }
 
-    fn add_terms(&self, _ctx: &LawContext<'_>, out: &mut LawTerms) {
+    fn add_terms(&self, ctx: &LawContext<'_>, out: &mut LawTerms) {
         let a = self.offset();
-        for (f, d) in out.force.iter_mut().zip(&self.drive) {
-            *f += a * d;
+        match &self.power {
+            None => {
+                for (f, d) in out.force.iter_mut().zip(&self.drive) {
+                    *f += a * d;
+                }
+            }
+            Some((k, n)) => {
+                // The springs' force at u − shift replaces theirs at u.
+                for i in 0..self.drive.len() {
+                    if self.drive[i] == 0.0 {
+                        continue;
+                    }
+                    let shift = a * self.drive[i] / k[i];
+                    let (moved, moved_slope) = power_law(ctx.u[i] - shift, *n);
+                    let (still, still_slope) = power_law(ctx.u[i], *n);
+                    out.force[i] += k[i] * (still - moved);
+                    out.stiffness[i] += k[i] * (moved_slope - still_slope);
+                }
+            }
         }
         out.volume_offset += a * self.volume_per_metre;
     }
@@ -231,7 +267,7 @@ impl ParticleLaw for Breathing {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::torso::{ProbeFace, TorsoParams};
+    use crate::sim::torso::{ProbeFace, ProbeKinematics, TorsoParams};
 
     fn centre_rise(torso: &Torso) -> f64 {
         let c = torso.params().center_xy;
@@ -261,6 +297,91 @@ mod tests {
         }
         assert!((highest - 0.005).abs() < 0.0005, "peak rise {highest}");
         assert!(lowest.abs() < 0.0005, "lowest {lowest}");
+    }
+
+    /// Rise [m] of the top at the centre and halfway to a corner, at full inhalation.
+    fn rises(edge_rise: f64) -> (f64, f64) {
+        let mut torso = Torso::new(TorsoParams::default(), ProbeFace::default()).unwrap();
+        let params = BreathingParams {
+            rate_drift: 0.0,
+            phase: std::f64::consts::PI,
+            edge_rise,
+            ..Default::default()
+        };
+        let law = Breathing::new(params, &torso, 1).unwrap();
+        let u = law.equilibrium();
+        torso.set_state(&u, &vec![0.0; u.len()]);
+        let p = torso.params().clone();
+        let off = [
+            p.center_xy[0] + p.size[0] / 4.0,
+            p.center_xy[1] + p.size[1] / 4.0,
+        ];
+        (
+            centre_rise(&torso),
+            torso.skin_z(off[0], off[1]).unwrap() - p.top_z(),
+        )
+    }
+
+    #[test]
+    fn edge_rise_sets_how_much_the_flanks_follow_the_centre() {
+        let (centre, off) = rises(0.0);
+        assert!((centre - 0.005).abs() < 0.0005, "centre {centre}");
+        assert!(off < 0.7 * centre, "dome: {off} vs {centre}");
+        let (centre, off) = rises(1.0);
+        assert!((centre - 0.005).abs() < 0.0005, "centre {centre}");
+        assert!(off > 0.9 * centre, "flat: {off} vs {centre}");
+    }
+
+    /// Peak-to-peak force [N] on a probe held `depth` below the rest top at the centre,
+    /// over two breaths.
+    fn force_swing(params: TorsoParams, depth: f64) -> f64 {
+        let mut torso = Torso::new(params, ProbeFace::default()).unwrap();
+        let breathing = BreathingParams {
+            rate_drift: 0.0,
+            amplitude: 0.003,
+            ..Default::default()
+        };
+        let law = Breathing::new(breathing, &torso, 1).unwrap();
+        torso.add_law(Box::new(law));
+        let c = torso.params().center_xy;
+        let probe =
+            ProbeKinematics::upright([c[0], c[1], torso.params().top_z() - depth], [0.0; 3]);
+        let (mut low, mut high) = (f64::INFINITY, f64::NEG_INFINITY);
+        for step in 0..4500 {
+            let f = torso.step(0.002, Some(&probe)).force[2];
+            if step > 500 {
+                low = low.min(f);
+                high = high.max(f);
+            }
+        }
+        high - low
+    }
+
+    #[test]
+    fn stiffening_tissue_feels_breathing_more_when_pressed_deeper() {
+        // Breathing moves the springs' foundation: with a power spring (n = 2) the force
+        // swing grows with depth as the local stiffness does; linear springs: about the
+        // same at every depth.
+        let stiffening = TorsoParams {
+            exponent: 2.0,
+            ..Default::default()
+        };
+        let (shallow, deep) = (
+            force_swing(stiffening.clone(), 0.005),
+            force_swing(stiffening, 0.02),
+        );
+        assert!(
+            deep > 2.0 * shallow,
+            "swing {shallow} N at 5 mm, {deep} N at 20 mm"
+        );
+        let (shallow, deep) = (
+            force_swing(TorsoParams::default(), 0.005),
+            force_swing(TorsoParams::default(), 0.02),
+        );
+        assert!(
+            (deep / shallow - 1.0).abs() < 0.3,
+            "linear: swing {shallow} N at 5 mm, {deep} N at 20 mm"
+        );
     }
 
     #[test]

@@ -26,6 +26,18 @@ pub struct Relaxation {
     pub tau_s: f64,
 }
 
+/// The power spring's displacement law per unit stiffness: `P(u) = u₀·(|u|/u₀)ⁿ·sign(u)`
+/// and its slope `P′(u) = n·(|u|/u₀)ⁿ⁻¹` (floored at 10 µm for `n < 1`).
+pub fn power_law(u: f64, n: f64) -> (f64, f64) {
+    let u0 = POWER_REFERENCE_DEPTH;
+    let ratio = u.abs() / u0;
+    let slope_ratio = if n < 1.0 { ratio.max(1e-3) } else { ratio };
+    (
+        u0 * ratio.powf(n) * u.signum(),
+        n * slope_ratio.powf(n - 1.0),
+    )
+}
+
 /// The power-law part of the particle springs (see the module docs).
 #[derive(Debug, Clone)]
 pub struct PowerSpring {
@@ -41,20 +53,16 @@ impl ParticleLaw for PowerSpring {
     }
 
     fn add_terms(&self, ctx: &LawContext<'_>, out: &mut LawTerms) {
-        let n = self.exponent;
-        let u0 = POWER_REFERENCE_DEPTH;
         for i in 0..ctx.u.len() {
             let u = ctx.u[i];
-            let a = u.abs();
-            if a < 1e-12 {
+            if u.abs() < 1e-12 {
                 continue;
             }
             let k = self.stiffness[i];
-            let ratio = a / u0;
-            let power = u0 * ratio.powf(n);
-            out.force[i] -= k * (power - a) * u.signum();
+            let (power, slope) = power_law(u, self.exponent);
+            out.force[i] -= k * (power - u);
             // d/du of the extra force, negated; the linear spring already adds k.
-            out.stiffness[i] += k * (n * ratio.powf(n - 1.0) - 1.0);
+            out.stiffness[i] += k * (slope - 1.0);
         }
     }
 
