@@ -57,14 +57,18 @@ impl Run {
         (found, self.truth["effects"][effect][key].as_f64().unwrap())
     }
 
+    /// Held-out RMSE before and after, and the noise floor [N].
+    fn rmse(&self) -> (f64, f64, f64) {
+        let improvement = &self.report["improvement"];
+        (
+            improvement["heldout_rmse_before_n"].as_f64().unwrap(),
+            improvement["heldout_rmse_after_n"].as_f64().unwrap(),
+            self.truth["noise_n"].as_f64().unwrap(),
+        )
+    }
+
     fn check_fit(&self) {
-        let before = self.report["improvement"]["heldout_rmse_before_n"]
-            .as_f64()
-            .unwrap();
-        let after = self.report["improvement"]["heldout_rmse_after_n"]
-            .as_f64()
-            .unwrap();
-        let noise = self.truth["noise_n"].as_f64().unwrap();
+        let (before, after, noise) = self.rmse();
         assert!(
             after >= 0.9 * noise,
             "held-out RMSE {after} below the noise floor {noise}"
@@ -241,11 +245,20 @@ fn full_matrix() {
             let ok = run.found() == want
                 && std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run.check_fit()))
                     .is_ok();
+            let (before, after, noise) = run.rmse();
             eprintln!(
-                "seed {seed} {case:?}: found {:?} {}",
+                "seed {seed} {case:?}: found {:?} {}; held-out {before:.3} → {after:.3} N (σ {noise:.3}, capture {:.2})",
                 run.found(),
-                if ok { "ok" } else { "FAILED" }
+                if ok { "ok" } else { "FAILED" },
+                (before - after) / (before - noise)
             );
+            for effect in run.report["effects"].as_array().unwrap() {
+                let name = effect["name"].as_str().unwrap();
+                eprintln!(
+                    "    {name}: {} | truth {}",
+                    effect["params"], run.truth["effects"][name]
+                );
+            }
             if !ok {
                 failures.push(format!("seed {seed} {case:?} → {:?}", run.found()));
             }

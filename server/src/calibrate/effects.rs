@@ -9,7 +9,7 @@
 //! | `tissue_inertia` | `−m·a_z` while touching | moving mass (`torso.moving_mass`) |
 //! | `nonlinear_stiffness` | `k·(δ₀(δ/δ₀)ⁿ − δ)` plus a stiffness change, in contact | power spring (`torso.exponent`) |
 //! | `viscoelastic_relaxation` | `k_m·(δ − x)`, `ẋ = (δ − x)/τ`: relaxes during holds, memory between pushes | Maxwell branch (`torso.relaxation`) |
-//! | `breathing_motion` | `k·a·sin(2πft + φ)` while touching, 0.1–0.6 Hz | breathing law (`breathing`) |
+//! | `breathing_motion` | `k·a·sin φ(t)` while touching, 0.1–0.6 Hz; per recording a phase, a rate and a linear rate change; `a` from a rise profile over the top | breathing law (`breathing`, `edge_rise`) |
 //! | `site_heterogeneity` | `(s_site − 1)·F` per site | local stiffness (`torso.stiffness_sites`) |
 //!
 //! A signature is fitted by linear least squares on the **training** recordings (one
@@ -413,8 +413,11 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], base: Base) ->
                 .filter(|(_, t)| **t)
                 .map(|((&(_, a, c), s), _)| (2.0 * a.hypot(c) / k_eff, s))
                 .collect();
-            let mut shape = (f64::INFINITY, 0.0, 0.0);
-            for k in 0..=20 {
+            // From a top rising as one down to a dome: where the sites cannot tell the
+            // profiles apart (one site, or sites equally far from the centre), the flat
+            // profile wins the tie and the stated amplitude is what was measured.
+            let mut shape = (f64::INFINITY, 1.0, 0.0);
+            for k in (0..=20).rev() {
                 let edge = k as f64 / 20.0;
                 let (rg, gg) = rises.iter().fold((0.0, 0.0), |(rg, gg), (r, s)| {
                     let g = profile(s, edge);
@@ -425,7 +428,7 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], base: Base) ->
                     .iter()
                     .map(|(r, s)| (r - centre * profile(s, edge)).powi(2))
                     .sum();
-                if sse < shape.0 - 1e-15 {
+                if sse < shape.0 * (1.0 - 1e-9) {
                     shape = (sse, edge, centre);
                 }
             }
