@@ -233,15 +233,16 @@ impl ParticleLaw for Breathing {
             }
             Some((k, n)) => {
                 // The springs' force at u − shift replaces theirs at u.
-                for i in 0..self.drive.len() {
-                    if self.drive[i] == 0.0 {
+                let particles = self.drive.iter().zip(k).zip(ctx.u).enumerate();
+                for (i, ((&drive, &k), &u)) in particles {
+                    if drive == 0.0 {
                         continue;
                     }
-                    let shift = a * self.drive[i] / k[i];
-                    let (moved, moved_slope) = power_law(ctx.u[i] - shift, *n);
-                    let (still, still_slope) = power_law(ctx.u[i], *n);
-                    out.force[i] += k[i] * (still - moved);
-                    out.stiffness[i] += k[i] * (moved_slope - still_slope);
+                    let shift = a * drive / k;
+                    let (moved, moved_slope) = power_law(u - shift, *n);
+                    let (still, still_slope) = power_law(u, *n);
+                    out.force[i] += k * (still - moved);
+                    out.stiffness[i] += k * (moved_slope - still_slope);
                 }
             }
         }
