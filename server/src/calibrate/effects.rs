@@ -520,11 +520,11 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], base: Base) ->
                 .map(|(site, b)| (site.clone(), (1.0 + b).into()))
                 .collect();
             // Heterogeneity is a difference between sites, not a common scale (that is the
-            // baseline's stiffness): the site scales must spread by at least 15 %.
+            // baseline's stiffness): the site scales must spread by at least 8 %.
             let scales = &beta[..sites.len()];
             let spread = scales.iter().copied().fold(f64::MIN, f64::max)
                 - scales.iter().copied().fold(f64::MAX, f64::min);
-            if spread < 0.15 {
+            if spread < SITE_MIN_SPREAD {
                 return None;
             }
             // Specificity: a site's tissue scales its force at every depth; a nonlinear
@@ -546,6 +546,9 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], base: Base) ->
     })
 }
 
+/// Smallest spread of the site scales (max − min) that counts as heterogeneity rather
+/// than a common scale.
+const SITE_MIN_SPREAD: f64 = 0.08;
 /// Share of the residual's variation inside steady stretches that breathing must
 /// explain.
 const BREATHING_STEADY_SHARE: f64 = 0.25;
