@@ -680,8 +680,8 @@ fn steady_stretches(s: &Series) -> Vec<std::ops::Range<usize>> {
     out
 }
 
-/// Breathing oscillation `a·sin φ + b·cos φ` (φ the chirp's phase) for one series: (SSE, a, b). Fitted where
-/// the probe holds its depth (each steady stretch with its own offset), so that
+/// Breathing oscillation `a·sin φ + b·cos φ` (φ the chirp's phase) for one series: (SSE,
+/// a, b). Fitted where the probe holds its depth (each steady stretch with its own offset), so that
 /// depth-dependent effects (a nonlinear spring, relaxation's level) cannot inflate it;
 /// over all in-contact samples when the series has under 2 s of steady stretches (a
 /// chirp).

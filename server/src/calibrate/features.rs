@@ -67,14 +67,15 @@ impl Series {
             .zip(&prediction.fz)
             .map(|(m, p)| m - p)
             .collect();
-        let touching: Vec<usize> = (0..n).filter(|&i| prediction.contact[i]).collect();
-        let used: Vec<usize> = if touching.is_empty() {
-            (0..n).collect()
-        } else {
-            touching
-        };
-        let xy = [0, 1]
-            .map(|axis| used.iter().map(|&i| rec.p[i][axis]).sum::<f64>() / used.len() as f64);
+        let touched = prediction.contact.iter().any(|&c| c);
+        let (mut sum, mut count) = ([0.0; 2], 0.0);
+        for (p, &c) in rec.p.iter().zip(&prediction.contact) {
+            if c || !touched {
+                sum = [sum[0] + p[0], sum[1] + p[1]];
+                count += 1.0;
+            }
+        }
+        let xy = sum.map(|s| s / count);
         Self {
             xy,
             index,

@@ -440,6 +440,9 @@ fn pack(model: &Model, names: &[&str]) -> (Vec<f64>, Vec<Bound>) {
                 x.push(r.tau_s.ln());
                 bounds.push(b((0.01f64).ln(), (100.0f64).ln(), 0.02));
             }
+            // Breathing's centre rise and profile (phases and rates stay the signature's).
+            // Refitting them once inflated the amplitude, but only while the simulated
+            // rise profile (a fixed dome) could not match the recordings' sites.
             "breathing_motion" => {
                 let (_, amplitude) = model.breathing.unwrap_or((0.25, 0.0));
                 x.push(amplitude);

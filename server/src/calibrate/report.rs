@@ -88,12 +88,7 @@ fn model_json(m: &Model) -> serde_json::Value {
 }
 
 /// Fitted parameters of an accepted effect, from the calibrated model (catalogue keys).
-fn calibrated_params(
-    name: &str,
-    o: &Outcome,
-    site_stiffness: &[(String, f64)],
-) -> serde_json::Value {
-    let m = &o.calibrated;
+fn calibrated_params(name: &str, m: &Model, site_stiffness: &[(String, f64)]) -> serde_json::Value {
     match name {
         "sensor_bias" => serde_json::json!({"fz_n": m.bias}),
         "sensor_delay" => serde_json::json!({"delay_s": m.delay}),
@@ -142,7 +137,7 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
         .map(|a| {
             serde_json::json!({
                 "name": a.name,
-                "params": calibrated_params(a.name, o, &site_stiffness),
+                "params": calibrated_params(a.name, &o.calibrated, &site_stiffness),
                 "signature_params": a.params,
                 "evidence": a.evidence,
                 "heldout_rmse_n": a.heldout_rmse_n,
@@ -274,8 +269,7 @@ fn site_stiffness(o: &Outcome) -> Vec<(String, f64)> {
         .collect()
 }
 
-fn effect_sentence(name: &str, o: &Outcome, site_stiffness: &[(String, f64)]) -> String {
-    let m = &o.calibrated;
+fn effect_sentence(name: &str, m: &Model, site_stiffness: &[(String, f64)]) -> String {
     match name {
         "sensor_bias" => format!(
             "the force sensor reads a constant {:+.2} N offset (e.g. uncompensated tool weight); added a sensor bias",
@@ -401,7 +395,7 @@ fn markdown(
             s,
             "- **{}**: {}. Evidence: {}.",
             a.name,
-            effect_sentence(a.name, o, site_stiffness),
+            effect_sentence(a.name, &o.calibrated, site_stiffness),
             a.evidence
         );
     }
