@@ -198,6 +198,14 @@ pub fn main_with_args(args: impl IntoIterator<Item = OsString>) -> u8 {
 
 fn calibrate(args: CalibrateArgs) -> Result<(), String> {
     use crate::calibrate::{CalibrateOptions, synth};
+    // RUST_LOG=echogym=debug shows each fit's convergence, evaluations and time.
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+        )
+        .with_writer(std::io::stderr)
+        .try_init();
     if let Some(CalibrateCommand::Synth {
         effects,
         seed,

@@ -50,6 +50,8 @@ pub struct Base {
     pub center_xy: [f64; 2],
     /// Torso half-extents in x and y [m].
     pub half_size: [f64; 2],
+    /// Number of sites (series carry their index in `Series::site_index`).
+    pub sites: usize,
 }
 
 /// Reference depth of the nonlinear signature [m] (same as the power spring's).
@@ -100,12 +102,18 @@ type Columns<'a> = dyn Fn(&Series, f64) -> Vec<Vec<f64>> + 'a;
 /// and damping changes. Every signature is fitted together with them, so an effect's
 /// evidence is measured against a re-balanced baseline (a missing effect otherwise
 /// leaves the baseline's fitted values distorted, which other signatures would "explain").
-pub fn readjust_columns(s: &Series, k_eff: f64, damping: bool) -> Vec<Vec<f64>> {
+///
+/// The surface is readjusted per site (a column per site: the site's recordings in
+/// contact), as the baseline fits it: a height error at one site is geometry, and must
+/// not be left for an effect to explain.
+pub fn readjust_columns(s: &Series, base: Base, damping: bool) -> Vec<Vec<f64>> {
+    let k_eff = base.k;
     let c = contact_mask(s);
-    let mut columns = vec![
-        positive_depth(s).iter().map(|d| k_eff * d).collect(),
-        c.iter().map(|c| k_eff * c).collect(),
-    ];
+    let mut columns = vec![positive_depth(s).iter().map(|d| k_eff * d).collect()];
+    for site in 0..base.sites.max(1) {
+        let here = if s.site_index == site { k_eff } else { 0.0 };
+        columns.push(c.iter().map(|c| here * c).collect());
+    }
     if damping {
         columns.push(s.vz.iter().zip(&c).map(|(v, c)| -v * c).collect());
     }
@@ -134,10 +142,10 @@ fn fit_with(
     damping: bool,
     candidate: &Columns<'_>,
 ) -> (f64, Vec<f64>, Vec<Vec<f64>>) {
-    let (k_eff, min_damping) = (base.k, base.c);
+    let min_damping = base.c;
     let columns = |s: &Series, g: f64| {
         let mut c = candidate(s, g);
-        c.extend(readjust_columns(s, k_eff, damping));
+        c.extend(readjust_columns(s, base, damping));
         c
     };
     let mut best = (f64::INFINITY, 0.0, Vec::new());

@@ -15,6 +15,8 @@ pub struct Series {
     pub file: String,
     /// Site name.
     pub site: String,
+    /// Site index in the setup's site list.
+    pub site_index: usize,
     /// Protocol name as stated in the dataset.
     pub protocol: String,
     /// Time [s].
@@ -47,6 +49,7 @@ impl Series {
         index: usize,
         file: &str,
         site: &str,
+        site_index: usize,
         protocol: &str,
         rec: &Recording,
         prediction: &Prediction,
@@ -81,6 +84,7 @@ impl Series {
             index,
             file: file.to_owned(),
             site: site.to_owned(),
+            site_index,
             protocol: protocol.to_owned(),
             t: rec.t.clone(),
             measured,
@@ -112,24 +116,4 @@ pub fn rmse(residuals: &[&[f64]]) -> f64 {
         (s + r.iter().map(|v| v * v).sum::<f64>(), c + r.len())
     });
     (sum / count.max(1) as f64).sqrt()
-}
-
-/// Noise floor [N]: robust standard deviation of the force's second differences
-/// (`Var(Δ²n) = 6σ²` for white noise), median over recordings.
-pub fn noise_floor(series: &[Series]) -> f64 {
-    let mut per: Vec<f64> = series
-        .iter()
-        .filter(|s| s.len() > 10)
-        .map(|s| {
-            let mut d: Vec<f64> = s
-                .measured
-                .windows(3)
-                .map(|w| (w[0] - 2.0 * w[1] + w[2]).abs())
-                .collect();
-            d.sort_by(f64::total_cmp);
-            d[d.len() / 2] / 0.6745 / 6f64.sqrt()
-        })
-        .collect();
-    per.sort_by(f64::total_cmp);
-    per.get(per.len() / 2).copied().unwrap_or(0.0)
 }

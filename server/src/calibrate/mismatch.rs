@@ -43,6 +43,8 @@ pub struct Location {
     pub phase: String,
     /// Share of the total residual energy.
     pub share: f64,
+    /// RMS residual in the span [N].
+    pub rms_n: f64,
     /// In words.
     pub description: String,
 }
@@ -170,6 +172,7 @@ pub fn locate(series: &[Series]) -> Mismatch {
                 t_end: s.t[end - 1],
                 phase: dominant.to_owned(),
                 share: e / total,
+                rms_n: rms,
                 description: format!(
                     "{dominant} at {}: residual RMS {rms:.2} N, mean {mean:+.2} N",
                     s.site

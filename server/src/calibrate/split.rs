@@ -1,0 +1,97 @@
+//! Which recordings fit, which choose, which judge: a seeded three-way split of whole
+//! recordings.
+//!
+//! - **train**: every parameter is fitted here (baseline, geometry, effects);
+//! - **validation**: candidate effects are chosen and gated here;
+//! - **test**: never used to fit or to choose; the report's before/after is measured here.
+//!
+//! A protocol with three or more recordings gives one to validation and one to test; the
+//! protocols with exactly two give one each, alternately to validation and test (seeded
+//! order), so each kind of excitation is held out somewhere while every protocol keeps a
+//! training recording. A recording is never held out if it is its site's last training
+//! recording. With nothing held out that way, a third of the recordings are (half to
+//! validation, half to test), and with two recordings one trains and one validates.
+
+use rand::SeedableRng;
+use rand::seq::SliceRandom;
+use rand_pcg::Pcg64Mcg;
+
+use crate::recordings::Dataset;
+
+/// The three sets, as sorted recording indices.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Split {
+    /// Fitting.
+    pub train: Vec<usize>,
+    /// Choosing and gating effects.
+    pub validation: Vec<usize>,
+    /// Judging only.
+    pub test: Vec<usize>,
+}
+
+/// Split `dataset`'s recordings (seeded).
+pub fn split(dataset: &Dataset, seed: u64) -> Split {
+    let mut rng = Pcg64Mcg::seed_from_u64(seed);
+    let entries = &dataset.meta.recordings;
+    let n = entries.len();
+    let mut validation: Vec<usize> = Vec::new();
+    let mut test: Vec<usize> = Vec::new();
+    let keeps_site = |held: &[usize], i: usize| {
+        (0..n).any(|j| j != i && !held.contains(&j) && entries[j].site == entries[i].site)
+    };
+    let mut protocols: Vec<&str> = entries.iter().map(|e| e.protocol.as_str()).collect();
+    protocols.sort();
+    protocols.dedup();
+    protocols.shuffle(&mut rng);
+    let mut pairs_to_test = false;
+    for protocol in protocols {
+        let mut at: Vec<usize> = (0..n)
+            .filter(|&i| entries[i].protocol == protocol)
+            .collect();
+        if at.len() < 2 {
+            continue;
+        }
+        at.shuffle(&mut rng);
+        let sets: &[bool] = if at.len() >= 3 {
+            &[false, true]
+        } else {
+            pairs_to_test = !pairs_to_test;
+            if pairs_to_test { &[false] } else { &[true] }
+        };
+        for &to_test in sets {
+            let held: Vec<usize> = validation.iter().chain(&test).copied().collect();
+            if let Some(&i) = at
+                .iter()
+                .find(|&&i| !held.contains(&i) && keeps_site(&held, i))
+            {
+                if to_test {
+                    test.push(i);
+                } else {
+                    validation.push(i);
+                }
+            }
+        }
+    }
+    if validation.is_empty() && test.is_empty() && n >= 2 {
+        let mut all: Vec<usize> = (0..n).collect();
+        all.shuffle(&mut rng);
+        let held = n.div_ceil(3).max(1);
+        validation = all[..held.div_ceil(2)].to_vec();
+        if n >= 3 {
+            test = all[held.div_ceil(2)..held.max(2)].to_vec();
+        }
+    }
+    if test.is_empty() && validation.len() >= 2 {
+        test.extend(validation.pop());
+    }
+    validation.sort();
+    test.sort();
+    let train = (0..n)
+        .filter(|i| !validation.contains(i) && !test.contains(i))
+        .collect();
+    Split {
+        train,
+        validation,
+        test,
+    }
+}
