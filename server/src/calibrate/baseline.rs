@@ -12,7 +12,7 @@ use super::replay::{Model, Setup};
 use super::split::Split;
 
 /// LM iterations of the global stage (stiffness, damping, one surface height).
-const GLOBAL_ITERATIONS: usize = 6;
+const GLOBAL_ITERATIONS: usize = 3;
 /// LM iterations of the per-site stage.
 const SITE_ITERATIONS: usize = 8;
 

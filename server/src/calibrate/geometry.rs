@@ -7,16 +7,22 @@
 //! So:
 //! - every **site** has its own height relative to the global surface (shared by all the
 //!   recordings made there, so a press and a slide at one site agree);
-//! - every recording that moves sideways in contact (a **path**, e.g. a slide) has a
-//!   slope and, when long enough, a curvature along the direction it moves:
+//! - every **recording** (a path over the skin) has a small height correction of its
+//!   own — a probe placed again at a site lands a millimetre or two away, where a curved
+//!   body stands a fraction of a millimetre higher or lower — and, when it moves sideways
+//!   in contact (a slide), a slope and, when long enough, a curvature along its
+//!   direction:
 //!
 //! ```text
-//! z_surface(xy) = nominal + offset + h_site + slope·s + ½·curvature·s²,
-//! s = (xy − origin_site) · along_path   [m]
+//! z_surface(xy) = nominal + offset + h_site + h_rec + slope·s + ½·curvature·s²,
+//! s = (xy − centre_rec) · along_rec   [m]
 //! ```
 //!
-//! A path's shape is its own (two slides at one site may cross the skin in different
-//! directions). The replay keeps the particle torso flat and shifts the probe instead
+//! The recording's terms carry a prior towards zero ([`PATH_PRIOR`]): a correction of one
+//! prior standard deviation must pay for itself by lowering the recording's residual
+//! by ≈ [`PRIOR_FORCE_N`] RMS. They are nuisance states of each recording, fitted on the
+//! held-out recordings too (listed in the report); a path's shape is its own (two slides
+//! at one site may cross the skin in different directions). The replay keeps the particle torso flat and shifts the probe instead
 //! (the same contact depth and depth rate), so geometry costs nothing in the simulator.
 
 use serde::{Deserialize, Serialize};
@@ -30,6 +36,11 @@ pub const CURVATURE_EXTENT: f64 = 0.04;
 /// Below the nominal surface by this much [m], a sample counts as in contact when the
 /// geometry is laid out (before any fit).
 const CONTACT_MARGIN: f64 = 0.002;
+/// Prior standard deviations of a recording's height correction [m], slope and
+/// curvature [1/m].
+pub const PATH_PRIOR: [f64; 3] = [0.0005, 0.3, 10.0];
+/// RMS force [N] over a recording that one prior standard deviation is worth.
+pub const PRIOR_FORCE_N: f64 = 0.05;
 
 /// Where a surface parameter came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -58,11 +69,15 @@ pub struct SiteSurface {
     pub source: Source,
 }
 
-/// The surface along one recording's sideways path.
+/// The surface along one recording's path.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PathSurface {
     /// Recording index.
     pub recording: usize,
+    /// Mean contact point, world xy [m].
+    pub centre: [f64; 2],
+    /// Height correction of this recording relative to its site [m].
+    pub height_m: f64,
     /// Unit direction in world xy the probe moves along.
     pub along: [f64; 2],
     /// Extent of the contact points along `along` [m].
@@ -76,6 +91,11 @@ pub struct PathSurface {
 }
 
 impl PathSurface {
+    /// Whether the path moves sideways far enough for a slope.
+    pub fn has_slope(&self) -> bool {
+        self.extent_m > SLOPE_EXTENT
+    }
+
     /// Whether the path is long enough for a curvature.
     pub fn has_curvature(&self) -> bool {
         self.extent_m > CURVATURE_EXTENT
@@ -96,9 +116,9 @@ pub fn shift(
     let Some(path) = path else {
         return (site.height_m, 0.0);
     };
-    let s = (xy[0] - site.origin[0]) * path.along[0] + (xy[1] - site.origin[1]) * path.along[1];
+    let s = (xy[0] - path.centre[0]) * path.along[0] + (xy[1] - path.centre[1]) * path.along[1];
     let ds = v[0] * path.along[0] + v[1] * path.along[1];
-    let z = site.height_m + path.slope * s + 0.5 * path.curvature_per_m * s * s;
+    let z = site.height_m + path.height_m + path.slope * s + 0.5 * path.curvature_per_m * s * s;
     let dz = (path.slope + path.curvature_per_m * s) * ds;
     (z, dz)
 }
@@ -150,11 +170,11 @@ pub fn sites(dataset: &Dataset) -> Vec<SiteSurface> {
         .collect()
 }
 
-/// A path for every recording whose contact points spread more than
-/// [`SLOPE_EXTENT`] sideways (principal axis of the points), flat to begin with.
+/// A path for every recording (direction: the principal axis of its contact points),
+/// flat to begin with.
 pub fn paths(dataset: &Dataset) -> Vec<PathSurface> {
     (0..dataset.recordings.len())
-        .filter_map(|i| {
+        .map(|i| {
             let points = contact_points(dataset, i);
             let centre = mean(&points);
             let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
@@ -170,14 +190,16 @@ pub fn paths(dataset: &Dataset) -> Vec<PathSurface> {
                 let s = (p[0] - centre[0]) * along[0] + (p[1] - centre[1]) * along[1];
                 (lo.min(s), hi.max(s))
             });
-            (hi - lo > SLOPE_EXTENT).then_some(PathSurface {
+            PathSurface {
                 recording: i,
+                centre,
+                height_m: 0.0,
                 along,
                 extent_m: hi - lo,
                 slope: 0.0,
                 curvature_per_m: 0.0,
                 source: Source::Unfitted,
-            })
+            }
         })
         .collect()
 }
@@ -196,6 +218,8 @@ mod tests {
         };
         let path = PathSurface {
             recording: 0,
+            centre: [0.1, 0.0],
+            height_m: 0.0,
             along: [1.0, 0.0],
             extent_m: 0.06,
             slope: 0.05,

@@ -31,6 +31,7 @@ pub mod report;
 pub mod seed_method;
 pub mod split;
 pub mod synth;
+pub mod trajectory;
 pub mod unexplained;
 
 use std::path::{Path, PathBuf};
@@ -164,7 +165,10 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
         done: 0,
     };
     progress.stage("reading the dataset");
-    let dataset = Dataset::read(&options.dataset)?;
+    let mut dataset = Dataset::read(&options.dataset)?;
+    for rec in &mut dataset.recordings {
+        *rec = trajectory::smoothed(rec);
+    }
     let n = dataset.recordings.len();
     if n < 2 {
         return Err(CalibrateError::Unusable(format!(

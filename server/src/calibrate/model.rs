@@ -7,7 +7,7 @@ use crate::recordings::Dataset;
 use crate::sim::torso::Relaxation;
 
 use super::fit::{Bound, Convergence, levenberg_marquardt_blocks};
-use super::geometry::Source;
+use super::geometry::{PATH_PRIOR, PRIOR_FORCE_N, Source};
 use super::replay::{Model, Setup, replay_all};
 use super::report::Accepted;
 
@@ -143,15 +143,23 @@ fn pack(
         for path in &model.paths {
             if fit_on.contains(&path.recording) && fits(path.source) {
                 let touch = Touch::Recording(path.recording);
+                let name = |key: &str| format!("path.{}.{key}", path.recording);
                 p.push(
-                    format!("path.{}.slope", path.recording),
-                    path.slope,
-                    (-0.5, 0.5, 1e-3),
+                    name("height_m"),
+                    path.height_m,
+                    (-0.005, 0.005, 2e-5),
                     touch.clone(),
                 );
+                if path.has_slope() {
+                    p.push(name("slope"), path.slope, (-0.5, 0.5, 1e-3), touch.clone());
+                }
                 if path.has_curvature() {
-                    let name = format!("path.{}.curvature_per_m", path.recording);
-                    p.push(name, path.curvature_per_m, (-30.0, 30.0, 0.1), touch);
+                    p.push(
+                        name("curvature_per_m"),
+                        path.curvature_per_m,
+                        (-30.0, 30.0, 0.1),
+                        touch,
+                    );
                 }
             }
         }
@@ -259,6 +267,7 @@ fn unpack(template: &Model, names: &[String], x: &[f64]) -> Model {
                 let recording: usize = recording.parse().expect("recording index");
                 if let Some(path) = m.paths.iter_mut().find(|p| p.recording == recording) {
                     match field {
+                        "height_m" => path.height_m = v,
                         "slope" => path.slope = v,
                         _ => path.curvature_per_m = v,
                     }
@@ -304,6 +313,7 @@ pub fn fit_model(
             Touch::Recording(i) => (0..fit_on.len()).filter(|&b| fit_on[b] == *i).collect(),
         })
         .collect();
+    let with_prior = free.geometry != Geometry::Fixed;
     let residuals = |x: &[f64], blocks: &[usize]| -> Vec<Vec<f64>> {
         let candidate = unpack(&model, &packed.names, x);
         let indices: Vec<usize> = blocks.iter().map(|&b| fit_on[b]).collect();
@@ -312,11 +322,24 @@ pub fn fit_model(
             .iter()
             .zip(&predictions)
             .map(|(&b, p)| {
-                let rec = &dataset.recordings[fit_on[b]];
-                (0..rec.len())
+                let i = fit_on[b];
+                let rec = &dataset.recordings[i];
+                let mut rows: Vec<f64> = (0..rec.len())
                     .step_by(strides[b])
                     .map(|k| rec.f[k][2] - p.fz[k])
-                    .collect()
+                    .collect();
+                if with_prior && let Some(path) = candidate.paths.iter().find(|p| p.recording == i)
+                {
+                    // The recording's geometry prior (see `geometry::PATH_PRIOR`).
+                    let weight = PRIOR_FORCE_N * (rows.len() as f64).sqrt();
+                    let [h, g, c] = PATH_PRIOR;
+                    rows.extend([
+                        weight * path.height_m / h,
+                        weight * path.slope / g,
+                        weight * path.curvature_per_m / c,
+                    ]);
+                }
+                rows
             })
             .collect()
     };

@@ -438,7 +438,7 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
     );
     let _ = writeln!(
         s,
-        "Surface by site and along sideways paths (nuisance geometry, never an effect):\n\n| site / path | height [mm] | slope [mm/cm] | curvature [1/m] | from |\n|---|---:|---:|---:|---|"
+        "Surface by site, and each recording's correction along its path (nuisance geometry, never an effect):\n\n| site / recording | height [mm] (recording: correction) | slope [mm/cm] | curvature [1/m] | from |\n|---|---:|---:|---:|---|"
     );
     let source = |src: super::geometry::Source| format!("{src:?}").to_lowercase();
     for g in &o.calibrated.surface {
@@ -453,9 +453,14 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
     for path in &o.calibrated.paths {
         let _ = writeln!(
             s,
-            "| {} | | {:+.2} | {} | {} |",
+            "| {} | {:+.2} | {} | {} | {} |",
             o.dataset.meta.recordings[path.recording].file,
-            10.0 * path.slope,
+            1000.0 * path.height_m,
+            if path.has_slope() {
+                format!("{:+.2}", 10.0 * path.slope)
+            } else {
+                "—".into()
+            },
             if path.has_curvature() {
                 format!("{:+.1}", path.curvature_per_m)
             } else {
