@@ -8,6 +8,7 @@ use crate::sim::torso::{ProbeFace, Torso, TorsoParams};
 use super::CalibrateError;
 use super::geometry::{self, Source};
 use super::model::{FitDiagnostics, Free, Geometry, fit_model};
+use super::onset;
 use super::replay::{Model, Setup};
 use super::split::Split;
 
@@ -68,6 +69,48 @@ fn initial_stiffness(dataset: &Dataset, train: &[usize], setup: &Setup) -> f64 {
     if rr > 0.0 { fr / rr } else { 1729.0 }
 }
 
+/// Sites' heights and recordings' corrections from the contact onsets (see
+/// [`onset`]), relative to the median onset of all recordings, which becomes the global
+/// surface offset's starting value (it stays fitted: the particle torso's own contact
+/// may sit a little off the data's).
+fn heights_from_onsets(dataset: &Dataset, model: &mut Model) {
+    let onsets: Vec<Option<f64>> = dataset.recordings.iter().map(onset::surface_z).collect();
+    for (entry, z) in dataset.meta.recordings.iter().zip(&onsets) {
+        tracing::debug!("contact onset of {}: {z:?}", entry.file);
+    }
+    let mut all: Vec<f64> = onsets.iter().flatten().copied().collect();
+    if all.is_empty() {
+        return;
+    }
+    all.sort_by(f64::total_cmp);
+    let reference = all[all.len() / 2];
+    model.surface_offset = reference - dataset.meta.nominal_surface_z;
+    for site in &mut model.surface {
+        let mut here: Vec<f64> = onsets
+            .iter()
+            .zip(&dataset.meta.recordings)
+            .filter(|(_, e)| e.site == site.site)
+            .filter_map(|(z, _)| *z)
+            .collect();
+        if here.is_empty() {
+            continue;
+        }
+        here.sort_by(f64::total_cmp);
+        site.height_m = here[here.len() / 2] - reference;
+        site.source = Source::Onset;
+    }
+    for path in &mut model.paths {
+        let entry = &dataset.meta.recordings[path.recording];
+        let site = model.surface.iter().find(|s| s.site == entry.site);
+        if let (Some(z), Some(site)) = (onsets[path.recording], site)
+            && site.source == Source::Onset
+        {
+            path.height_m = z - reference - site.height_m;
+            path.height_source = Source::Onset;
+        }
+    }
+}
+
 /// The fitted baseline and what its fit says about itself.
 pub struct Baseline {
     /// The model.
@@ -87,6 +130,7 @@ pub fn fit(setup: &Setup, dataset: &Dataset, split: &Split) -> Baseline {
     let mut start = Model::baseline(k0.clamp(100.0, 20_000.0), setup.torso.damping, 0.0);
     start.surface = geometry::sites(dataset);
     start.paths = geometry::paths(dataset);
+    heights_from_onsets(dataset, &mut start);
     let global = Free {
         physics: true,
         offset: true,
@@ -139,11 +183,11 @@ pub fn surface_elsewhere(
         let site = &dataset.meta.recordings[i].site;
         model
             .surface_at(site)
-            .is_some_and(|g| g.source != Source::Training)
+            .is_some_and(|g| !matches!(g.source, Source::Training | Source::Onset))
             || model
                 .paths
                 .iter()
-                .any(|p| p.recording == i && p.source != Source::Training)
+                .any(|p| p.recording == i && p.has_slope() && p.source != Source::Training)
     };
     let elsewhere: Vec<usize> = heldout.into_iter().filter(|&i| undetermined(i)).collect();
     if elsewhere.is_empty() {

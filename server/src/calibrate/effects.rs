@@ -50,8 +50,6 @@ pub struct Base {
     pub center_xy: [f64; 2],
     /// Torso half-extents in x and y [m].
     pub half_size: [f64; 2],
-    /// Number of sites (series carry their index in `Series::site_index`).
-    pub sites: usize,
 }
 
 /// Reference depth of the nonlinear signature [m] (same as the power spring's).
@@ -103,17 +101,15 @@ type Columns<'a> = dyn Fn(&Series, f64) -> Vec<Vec<f64>> + 'a;
 /// evidence is measured against a re-balanced baseline (a missing effect otherwise
 /// leaves the baseline's fitted values distorted, which other signatures would "explain").
 ///
-/// The surface is readjusted per site (a column per site: the site's recordings in
-/// contact), as the baseline fits it: a height error at one site is geometry, and must
-/// not be left for an effect to explain.
+/// The surface is readjusted as a whole, as the baseline fits it: the sites' heights are
+/// measured at contact onset (see `onset`), not free.
 pub fn readjust_columns(s: &Series, base: Base, damping: bool) -> Vec<Vec<f64>> {
     let k_eff = base.k;
     let c = contact_mask(s);
-    let mut columns = vec![positive_depth(s).iter().map(|d| k_eff * d).collect()];
-    for site in 0..base.sites.max(1) {
-        let here = if s.site_index == site { k_eff } else { 0.0 };
-        columns.push(c.iter().map(|c| here * c).collect());
-    }
+    let mut columns = vec![
+        positive_depth(s).iter().map(|d| k_eff * d).collect(),
+        c.iter().map(|c| k_eff * c).collect(),
+    ];
     if damping {
         columns.push(s.vz.iter().zip(&c).map(|(v, c)| -v * c).collect());
     }

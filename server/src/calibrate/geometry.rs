@@ -7,23 +7,29 @@
 //! So:
 //! - every **site** has its own height relative to the global surface (shared by all the
 //!   recordings made there, so a press and a slide at one site agree);
-//! - every **recording** (a path over the skin) has a small height correction of its
-//!   own — a probe placed again at a site lands a millimetre or two away, where a curved
-//!   body stands a fraction of a millimetre higher or lower — and, when it moves sideways
-//!   in contact (a slide), a slope and, when long enough, a curvature along its
-//!   direction:
+//! - every **recording** has a height correction of its own — a probe placed again at a
+//!   site lands a millimetre or two away, where a curved body stands a fraction of a
+//!   millimetre higher or lower — and, when it moves sideways in contact (a slide), a
+//!   slope and, when long enough, a curvature along its direction:
 //!
 //! ```text
 //! z_surface(xy) = nominal + offset + h_site + h_rec + slope·s + ½·curvature·s²,
 //! s = (xy − centre_rec) · along_rec   [m]
 //! ```
 //!
-//! The recording's terms carry a prior towards zero ([`PATH_PRIOR`]): a correction of one
-//! prior standard deviation must pay for itself by lowering the recording's residual
-//! by ≈ [`PRIOR_FORCE_N`] RMS. They are nuisance states of each recording, fitted on the
-//! held-out recordings too (listed in the report); a path's shape is its own (two slides
-//! at one site may cross the skin in different directions). The replay keeps the particle torso flat and shifts the probe instead
-//! (the same contact depth and depth rate), so geometry costs nothing in the simulator.
+//! Heights are **measured** from the force's contact onset wherever a recording
+//! approaches from free air ([`super::onset`]), not fitted: a fitted height trades against
+//! per-site stiffness (a stiffer site and a higher skin both give more force at a given
+//! probe height), which `site_heterogeneity` must name. A site's height is the median of
+//! its recordings' onsets, a recording's correction its own onset's difference from it
+//! (0 without an onset). Only a site where no recording has an onset gets its height
+//! fitted. A path's slope and curvature are fitted, with a prior towards flat
+//! ([`PATH_PRIOR`]: one prior standard deviation must pay for itself by lowering the
+//! recording's residual by ≈ [`PRIOR_FORCE_N`] RMS); a held-out slide's path is fitted on
+//! it (a nuisance state, listed in the report). A path's shape is its own (two slides at
+//! one site may cross the skin in different directions). The replay keeps the particle
+//! torso flat and shifts the probe instead (the same contact depth and depth rate), so
+//! geometry costs nothing in the simulator.
 
 use serde::{Deserialize, Serialize};
 
@@ -36,9 +42,8 @@ pub const CURVATURE_EXTENT: f64 = 0.04;
 /// Below the nominal surface by this much [m], a sample counts as in contact when the
 /// geometry is laid out (before any fit).
 const CONTACT_MARGIN: f64 = 0.002;
-/// Prior standard deviations of a recording's height correction [m], slope and
-/// curvature [1/m].
-pub const PATH_PRIOR: [f64; 3] = [0.0005, 0.3, 10.0];
+/// Prior standard deviations of a path's slope and curvature [1/m].
+pub const PATH_PRIOR: [f64; 2] = [0.3, 10.0];
 /// RMS force [N] over a recording that one prior standard deviation is worth.
 pub const PRIOR_FORCE_N: f64 = 0.05;
 
@@ -54,6 +59,8 @@ pub enum Source {
     /// Fitted on the held-out recordings that show it (no training recording does): a
     /// nuisance, like a breathing phase.
     Heldout,
+    /// Measured from the force's contact onset (see [`super::onset`]), not fitted.
+    Onset,
 }
 
 /// The surface height under one site.
@@ -78,6 +85,9 @@ pub struct PathSurface {
     pub centre: [f64; 2],
     /// Height correction of this recording relative to its site [m].
     pub height_m: f64,
+    /// Where the height correction came from.
+    #[serde(default)]
+    pub height_source: Source,
     /// Unit direction in world xy the probe moves along.
     pub along: [f64; 2],
     /// Extent of the contact points along `along` [m].
@@ -194,6 +204,7 @@ pub fn paths(dataset: &Dataset) -> Vec<PathSurface> {
                 recording: i,
                 centre,
                 height_m: 0.0,
+                height_source: Source::Unfitted,
                 along,
                 extent_m: hi - lo,
                 slope: 0.0,
@@ -220,6 +231,7 @@ mod tests {
             recording: 0,
             centre: [0.1, 0.0],
             height_m: 0.0,
+            height_source: Source::Training,
             along: [1.0, 0.0],
             extent_m: 0.06,
             slope: 0.05,

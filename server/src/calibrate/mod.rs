@@ -26,6 +26,7 @@ pub mod geometry;
 pub mod mismatch;
 pub mod model;
 pub mod noise;
+pub mod onset;
 pub mod replay;
 pub mod report;
 pub mod seed_method;
@@ -170,10 +171,22 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
         *rec = trajectory::smoothed(rec);
     }
     let n = dataset.recordings.len();
-    if n < 2 {
+    let mut sources: Vec<&str> = dataset
+        .meta
+        .recordings
+        .iter()
+        .map(|e| {
+            e.segment
+                .as_ref()
+                .map_or(e.file.as_str(), |s| s.source.as_str())
+        })
+        .collect();
+    sources.dedup();
+    if sources.len() < 2 {
         return Err(CalibrateError::Unusable(format!(
-            "{} holds {n} recording(s); at least 2 are needed (train and held-out)",
-            options.dataset.display()
+            "{} holds {} recording file(s); at least 2 are needed (train and held-out)",
+            options.dataset.display(),
+            sources.len()
         )));
     }
     let setup = baseline::setup(&dataset)?;
@@ -226,7 +239,6 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
                 c: k_now * calibrated.damping / calibrated.stiffness,
                 center_xy: setup.center_xy,
                 half_size: [setup.torso.size[0] / 2.0, setup.torso.size[1] / 2.0],
-                sites: setup.sites.len(),
             },
             noise,
             &skip,

@@ -63,11 +63,11 @@ pub enum Geometry {
 }
 
 impl Free {
-    /// Physics and the per-site surface (the global offset stays where it is: the sites'
-    /// heights are relative to it).
+    /// Physics, the global surface offset and the per-site surface (heights measured at
+    /// contact onset stay as measured, relative to the offset).
     pub const PER_SITE: Self = Self {
         physics: true,
-        offset: false,
+        offset: true,
         geometry: Geometry::Training,
     };
 }
@@ -115,7 +115,10 @@ fn pack(
     if free.physics {
         p.global("baseline.stiffness", model.stiffness, (50.0, 30_000.0, 5.0));
         p.global("baseline.damping", model.damping, (0.1, 500.0, 0.25));
-        if free.offset {
+        // With every site's height free, a global offset would be redundant.
+        let anchored = free.geometry == Geometry::Fixed
+            || model.surface.iter().any(|g| g.source == Source::Onset);
+        if free.offset && anchored {
             p.global(
                 "baseline.surface_offset_m",
                 model.surface_offset,
@@ -127,8 +130,11 @@ fn pack(
         }
     }
     if free.geometry != Geometry::Fixed {
-        let fits =
-            |source: Source| free.geometry == Geometry::Training || source != Source::Training;
+        // Heights measured at contact onset stay as measured.
+        let fits = |source: Source| {
+            source != Source::Onset
+                && (free.geometry == Geometry::Training || source != Source::Training)
+        };
         for surface in &model.surface {
             if fit_sites.contains(&surface.site) && fits(surface.source) {
                 let name = format!("surface.{}.height_m", surface.site);
@@ -141,15 +147,9 @@ fn pack(
             }
         }
         for path in &model.paths {
+            let touch = Touch::Recording(path.recording);
+            let name = |key: &str| format!("path.{}.{key}", path.recording);
             if fit_on.contains(&path.recording) && fits(path.source) {
-                let touch = Touch::Recording(path.recording);
-                let name = |key: &str| format!("path.{}.{key}", path.recording);
-                p.push(
-                    name("height_m"),
-                    path.height_m,
-                    (-0.005, 0.005, 2e-5),
-                    touch.clone(),
-                );
                 if path.has_slope() {
                     p.push(name("slope"), path.slope, (-0.5, 0.5, 1e-3), touch.clone());
                 }
@@ -332,12 +332,8 @@ pub fn fit_model(
                 {
                     // The recording's geometry prior (see `geometry::PATH_PRIOR`).
                     let weight = PRIOR_FORCE_N * (rows.len() as f64).sqrt();
-                    let [h, g, c] = PATH_PRIOR;
-                    rows.extend([
-                        weight * path.height_m / h,
-                        weight * path.slope / g,
-                        weight * path.curvature_per_m / c,
-                    ]);
+                    let [g, c] = PATH_PRIOR;
+                    rows.extend([weight * path.slope / g, weight * path.curvature_per_m / c]);
                 }
                 rows
             })
@@ -373,13 +369,18 @@ pub fn fit_model(
                 g.source = source;
             }
         } else if let Some(key) = name.strip_prefix("path.") {
-            let recording: Option<usize> = key.split('.').next().and_then(|r| r.parse().ok());
+            let (recording, field) = key.split_once('.').expect("path.<recording>.<field>");
+            let recording: Option<usize> = recording.parse().ok();
             if let Some(path) = fitted
                 .paths
                 .iter_mut()
                 .find(|p| Some(p.recording) == recording)
             {
-                path.source = source;
+                if field == "height_m" {
+                    path.height_source = source;
+                } else {
+                    path.source = source;
+                }
             }
         }
     }

@@ -280,10 +280,17 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
     .map_err(io_error(&path))?;
 
     for (i, s) in o.series.iter().enumerate() {
-        let stem = Path::new(&s.file).file_stem().map_or_else(
+        // A segment of a file split at a gap is listed as `file.csv#k`: `file#k.csv`.
+        let (file, segment) = s.file.split_once('#').unwrap_or((&s.file, ""));
+        let stem = Path::new(file).file_stem().map_or_else(
             || format!("recording_{i}"),
             |x| x.to_string_lossy().into_owned(),
         );
+        let stem = if segment.is_empty() {
+            stem
+        } else {
+            format!("{stem}#{segment}")
+        };
         let path = out.join("replay").join(format!("{stem}.csv"));
         let mut text = String::from("t,fz_measured,fz_baseline,fz_calibrated\n");
         for k in 0..s.len() {

@@ -9,7 +9,8 @@
 //! protocols with exactly two give one each, alternately to validation and test (seeded
 //! order), so each kind of excitation is held out somewhere while every protocol keeps a
 //! training recording. A recording is never held out if it is its site's last training
-//! recording. With nothing held out that way, a third of the recordings are (half to
+//! recording. Segments of one file split at a gap stay together. With nothing held out
+//! that way, a third of the recordings are (half to
 //! validation, half to test), and with two recordings one trains and one validates.
 
 use rand::SeedableRng;
@@ -84,6 +85,23 @@ pub fn split(dataset: &Dataset, seed: u64) -> Split {
     if test.is_empty() && validation.len() >= 2 {
         test.extend(validation.pop());
     }
+    // Segments of one file (split at a gap) are one recording: they go where their
+    // first-chosen piece went, never to two sets.
+    let source = |i: usize| {
+        entries[i]
+            .segment
+            .as_ref()
+            .map_or(entries[i].file.as_str(), |s| s.source.as_str())
+    };
+    for set in [&mut validation, &mut test] {
+        let chosen: Vec<&str> = set.iter().map(|&i| source(i)).collect();
+        let siblings: Vec<usize> = (0..n)
+            .filter(|&j| !set.contains(&j) && chosen.contains(&source(j)))
+            .collect();
+        set.extend(siblings);
+    }
+    let in_test: Vec<usize> = test.clone();
+    validation.retain(|i| !in_test.contains(i));
     validation.sort();
     test.sort();
     let train = (0..n)

@@ -47,9 +47,18 @@ pub enum RecordingsError {
         /// What is wrong.
         message: String,
     },
-    /// The sample rate is not constant or out of range.
+    /// The sample rate (of the median interval) is out of range.
     #[error("{path}: {message}")]
     Rate {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// A recording has fewer samples than the minimum, or every segment between its
+    /// gaps has.
+    #[error("{path}: {message}")]
+    TooShort {
         /// The file.
         path: PathBuf,
         /// What is wrong.

@@ -9,19 +9,27 @@
 //!                                "protocol": "press"}, ...],
 //!                "torso": {...}?, "notes": "..."?}      (unknown keys are kept)
 //! <file>.csv    t,px,py,pz,fx,fy,fz[,vx,vy,vz][,tx,ty,tz]
-//!               t in s (increasing, constant rate 100–2000 Hz), p in m (probe tip),
+//!               t in s (strictly increasing, jitter allowed, median rate 50–2000 Hz,
+//!               at least 10 samples), p in m (probe tip),
 //!               f in N (force the body exerts on the probe: pressing down reads fz > 0),
 //!               v in m/s (derived when absent), t* in N·m
 //! ```
-//! Reading validates everything and names the file and row of the first problem; writing
-//! goes to a temporary folder renamed into place at the end, so nothing is half-written.
+//! Reading validates everything and names the file and row of the first problem (NaN or
+//! infinite values, time not strictly increasing) or the file (median rate outside
+//! 50–2000 Hz, fewer than [`MIN_SAMPLES`] samples). Real robot logs drop messages: an
+//! interval longer than max([`GAP_FACTOR`] × median interval, [`GAP_MIN_S`]) = max(5 ×
+//! median, 0.05 s) is a gap, and a file with gaps is read as one recording per segment
+//! (listed as `<file>#1`, `<file>#2`, … with the file's site, protocol and other keys, time
+//! stamps unchanged, velocities derived per segment); segments under [`MIN_SAMPLES`] are
+//! dropped with a warning, and a file with none left is refused. Writing goes to a
+//! temporary folder renamed into place at the end, so nothing is half-written.
 
 mod dataset;
 mod error;
 mod recording;
 mod writer;
 
-pub use dataset::{Dataset, DatasetMeta, FORMAT, RecordingEntry};
+pub use dataset::{Dataset, DatasetMeta, FORMAT, RecordingEntry, Segment};
 pub use error::RecordingsError;
-pub use recording::Recording;
+pub use recording::{GAP_FACTOR, GAP_MIN_S, MIN_SAMPLES, RATE_RANGE_HZ, Recording};
 pub use writer::DatasetWriter;

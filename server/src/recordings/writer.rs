@@ -81,6 +81,7 @@ impl DatasetWriter {
             site: site.to_owned(),
             protocol: protocol.to_owned(),
             extra: Default::default(),
+            segment: None,
         });
         if let Some(sender) = &self.sender {
             let _ = sender.send((self.temp.join(file), recording));
