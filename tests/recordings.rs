@@ -29,6 +29,7 @@ fn press(rate: f64, n: usize) -> Recording {
         p,
         f,
         torque: None,
+        velocity_measured: true,
     }
 }
 

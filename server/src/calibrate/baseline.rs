@@ -173,12 +173,7 @@ pub fn surface_elsewhere(
     split: &Split,
     model: Model,
 ) -> (Model, Vec<String>) {
-    let heldout: Vec<usize> = split
-        .validation
-        .iter()
-        .chain(&split.test)
-        .copied()
-        .collect();
+    let heldout = split.heldout();
     let undetermined = |i: usize| {
         let site = &dataset.meta.recordings[i].site;
         model

@@ -324,15 +324,10 @@ pub fn lag_one_autocorrelation(r: &[Vec<f64>]) -> f64 {
 mod tests {
     use super::*;
 
-    fn exponential() -> (Vec<f64>, Vec<f64>) {
+    /// `3·e^(−0.7 t) + 0.5` fitted from (1, 0.2, 0) with at most `iterations` steps.
+    fn fit_exponential(iterations: usize) -> FitResult {
         let t: Vec<f64> = (0..50).map(|k| k as f64 * 0.1).collect();
-        let y = t.iter().map(|t| 3.0 * (-0.7 * t).exp() + 0.5).collect();
-        (t, y)
-    }
-
-    #[test]
-    fn fits_an_exponential() {
-        let (t, y) = exponential();
+        let y: Vec<f64> = t.iter().map(|t| 3.0 * (-0.7 * t).exp() + 0.5).collect();
         let res = |p: &[f64]| -> Vec<f64> {
             t.iter()
                 .zip(&y)
@@ -344,7 +339,12 @@ mod tests {
             hi: 10.0,
             step: 1e-6,
         };
-        let fit = levenberg_marquardt(&res, &[1.0, 0.2, 0.0], &[b, b, b], 50);
+        levenberg_marquardt(&res, &[1.0, 0.2, 0.0], &[b, b, b], iterations)
+    }
+
+    #[test]
+    fn fits_an_exponential() {
+        let fit = fit_exponential(50);
         assert!(
             (fit.x[0] - 3.0).abs() < 1e-4 && (fit.x[1] - 0.7).abs() < 1e-4,
             "{:?}",
@@ -355,20 +355,7 @@ mod tests {
 
     #[test]
     fn a_budget_too_small_says_so() {
-        let (t, y) = exponential();
-        let res = |p: &[f64]| -> Vec<f64> {
-            t.iter()
-                .zip(&y)
-                .map(|(t, y)| p[0] * (-p[1] * t).exp() + p[2] - y)
-                .collect()
-        };
-        let b = Bound {
-            lo: -10.0,
-            hi: 10.0,
-            step: 1e-6,
-        };
-        let fit = levenberg_marquardt(&res, &[1.0, 0.2, 0.0], &[b, b, b], 1);
-        assert_eq!(fit.convergence, Convergence::IterationLimit);
+        assert_eq!(fit_exponential(1).convergence, Convergence::IterationLimit);
     }
 
     /// Blocks with a shared slope and an offset each: the sparse Jacobian gives the same

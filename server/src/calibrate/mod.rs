@@ -292,12 +292,7 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
         .max_by(|a, b| a.1.total_cmp(&b.1))
         .map(|(name, _)| name);
     rejected.extend(failed);
-    let heldout: Vec<usize> = split
-        .validation
-        .iter()
-        .chain(&split.test)
-        .copied()
-        .collect();
+    let heldout = split.heldout();
     let verdict = unexplained::assess(&current, &heldout, noise, closest);
     let calibrated_fz = current_fz;
 

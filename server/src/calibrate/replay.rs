@@ -315,6 +315,7 @@ mod tests {
             f: vec![[0.0; 3]; n],
             v,
             torque: None,
+            velocity_measured: true,
         }
     }
 

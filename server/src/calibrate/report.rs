@@ -200,13 +200,7 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
             })
         })
         .collect();
-    let heldout: Vec<usize> = o
-        .split
-        .validation
-        .iter()
-        .chain(&o.split.test)
-        .copied()
-        .collect();
+    let heldout = o.split.heldout();
     let report = serde_json::json!({
         "schema": SCHEMA,
         "dataset": o.dataset.dir,
@@ -583,12 +577,12 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
             let _ = writeln!(
                 s,
                 "- {} {:.1}–{:.1} s, {}: RMS {:.2} N, {:.0} % of the held-out residual energy{}",
-                span.recording,
-                span.t_start,
-                span.t_end,
-                span.phase,
-                span.rms_n,
-                100.0 * span.share,
+                span.location.recording,
+                span.location.t_start,
+                span.location.t_end,
+                span.location.phase,
+                span.location.rms_n,
+                100.0 * span.location.share,
                 span.resembles
                     .as_deref()
                     .map(|r| format!("; closest catalogue candidate: {r} (not accepted)"))

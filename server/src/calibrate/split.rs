@@ -30,6 +30,13 @@ pub struct Split {
     pub test: Vec<usize>,
 }
 
+impl Split {
+    /// Validation and test: every recording not fitted on.
+    pub fn heldout(&self) -> Vec<usize> {
+        self.validation.iter().chain(&self.test).copied().collect()
+    }
+}
+
 /// Split `dataset`'s recordings (seeded).
 pub fn split(dataset: &Dataset, seed: u64) -> Split {
     let mut rng = Pcg64Mcg::seed_from_u64(seed);

@@ -30,18 +30,9 @@ const MIN_SHARE: f64 = 0.05;
 /// A place where the calibrated simulator still misses.
 #[derive(Debug, Clone, Serialize)]
 pub struct Span {
-    /// Recording file.
-    pub recording: String,
-    /// Start and end [s].
-    pub t_start: f64,
-    /// End [s].
-    pub t_end: f64,
-    /// Dominant phase.
-    pub phase: String,
-    /// Share of the held-out residual energy.
-    pub share: f64,
-    /// RMS residual in the span [N].
-    pub rms_n: f64,
+    /// Recording, time span, dominant phase, share of the held-out residual energy, RMS.
+    #[serde(flatten)]
+    pub location: mismatch::Location,
     /// The catalogue candidate that came closest to explaining what remains (none:
     /// no candidate explained any of it).
     pub resembles: Option<String>,
@@ -86,13 +77,8 @@ pub fn assess(
             .into_iter()
             .filter(|l| l.share >= MIN_SHARE)
             .take(MAX_SPANS)
-            .map(|l| Span {
-                recording: l.recording,
-                t_start: l.t_start,
-                t_end: l.t_end,
-                phase: l.phase,
-                share: l.share,
-                rms_n: l.rms_n,
+            .map(|location| Span {
+                location,
                 resembles: resembles.map(str::to_owned),
             })
             .collect()

@@ -42,6 +42,8 @@ pub struct Recording {
     pub f: Vec<[f64; 3]>,
     /// Probe velocity [m/s] (derived by central differences when the file has none).
     pub v: Vec<[f64; 3]>,
+    /// Whether `v` came from the file (a measured velocity) rather than being derived.
+    pub velocity_measured: bool,
     /// Torque [N·m], when recorded.
     pub torque: Option<Vec<[f64; 3]>>,
 }
@@ -173,6 +175,7 @@ impl Recording {
                 p: rec.p[range.clone()].to_vec(),
                 f: rec.f[range.clone()].to_vec(),
                 v: Vec::new(),
+                velocity_measured: v_cols.is_some(),
                 torque: rec.torque.as_ref().map(|tq| tq[range.clone()].to_vec()),
             };
             piece.v = if v_cols.is_some() {
