@@ -43,7 +43,9 @@ enum Command {
     /// List the registered env ids.
     Envs,
     /// Calibrate the simulator against recordings: locate the mismatch, name the physics
-    /// left out, model it, show the fit improve (`calibrate synth` makes test datasets).
+    /// left out, model it, show the fit improve on test recordings, or say what remains
+    /// unexplained (`calibrate synth` makes test datasets; RUST_LOG=echogym=debug logs
+    /// each fit).
     #[command(args_conflicts_with_subcommands = true)]
     Calibrate(CalibrateArgs),
 }
@@ -57,7 +59,7 @@ struct CalibrateArgs {
     /// Output folder (report.json, report.md, replay/, calibrated.toml, plots).
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Seed of the train/held-out split.
+    /// Seed of the train/validation/test split.
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// No progress bar.

@@ -25,6 +25,7 @@
 //! spring seen at sites pressed to different depths cannot pass for it.
 
 use super::features::Series;
+use super::model::RELAXATION_TAU_S;
 use crate::sim::torso::rise_profile;
 
 /// The catalogue, in the order signatures are tried.
@@ -316,7 +317,7 @@ pub fn fit(name: &'static str, series: &[Series], train: &[bool], base: Base) ->
             predicted
         }
         "viscoelastic_relaxation" => {
-            let grid = log_grid(0.1, 30.0, 40);
+            let grid = log_grid(RELAXATION_TAU_S[0], RELAXATION_TAU_S[1], 40);
             let (tau, beta, predicted) = fit_shared(series, train, &grid, base, &|s, tau| {
                 let d = positive_depth(s);
                 let mut x = 0.0;

@@ -11,6 +11,9 @@ use super::geometry::{PATH_PRIOR, PRIOR_FORCE_N, Source};
 use super::replay::{Model, Setup, replay_all};
 use super::report::Accepted;
 
+/// Time constants a relaxation branch may take [s] (the signature's grid spans the same).
+pub const RELAXATION_TAU_S: [f64; 2] = [0.1, 30.0];
+
 /// Fitting uses at most this many residual samples per second of recording.
 const FIT_RATE_HZ: f64 = 100.0;
 
@@ -190,7 +193,10 @@ fn pack_effect(p: &mut Packed, model: &Model, name: &str) {
             p.global(
                 "viscoelastic_relaxation.tau_s",
                 r.tau_s.ln(),
-                (0.01f64.ln(), 100.0f64.ln(), 0.02),
+                // The signature's range: tissue relaxes over 0.1 s to minutes; a faster
+                // branch is indistinguishable from damping or a sensor delay (a 21 ms
+                // delay was refitted as a 27 ms branch before this bound).
+                (RELAXATION_TAU_S[0].ln(), RELAXATION_TAU_S[1].ln(), 0.02),
             );
         }
         // Breathing's centre rise and profile (phases and rates stay the signature's).
