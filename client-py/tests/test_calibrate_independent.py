@@ -7,7 +7,7 @@ no-effect baseline within 1.3× the noise floor on the test recordings, and find
 surface heights the generator put under the sites.
 
 The full matrix (every effect, pairs, three seeds) is run by hand; its results are in
-docs/calibration.md. These two cases run in CI (about a minute each).
+docs/results/calibration.md. These two cases run in CI (2–4 minutes each on 2 cores).
 """
 
 from __future__ import annotations
