@@ -230,7 +230,10 @@ fn a_broken_dataset_is_refused_naming_file_and_row_and_nothing_is_written() {
 #[test]
 #[ignore = "full matrix: every effect, pairs, several seeds (≈ 30 min); results in docs/calibration.md"]
 fn full_matrix() {
-    let effects = echogym::calibrate::effects::CATALOGUE;
+    let effects: Vec<&str> = echogym::calibrate::effects::CATALOGUE
+        .iter()
+        .map(|e| e.name())
+        .collect();
     let mut failures = Vec::new();
     for seed in [6, 7, 8] {
         let mut cases: Vec<Vec<&str>> = vec![vec![]];
@@ -238,6 +241,9 @@ fn full_matrix() {
         cases.push(vec!["sensor_bias", "viscoelastic_relaxation"]);
         cases.push(vec!["nonlinear_stiffness", "breathing_motion"]);
         cases.push(vec!["sensor_delay", "site_heterogeneity"]);
+        cases.push(vec!["sliding_friction", "bias_drift"]);
+        cases.push(vec!["sensor_filter", "tissue_inertia"]);
+        cases.push(vec!["depth_dependent_damping", "breathing_motion"]);
         for case in cases {
             let run = calibrate(&case, seed);
             let mut want: Vec<String> = case.iter().map(|s| (*s).to_owned()).collect();

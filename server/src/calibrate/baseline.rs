@@ -2,6 +2,7 @@
 //! damping and the body's surface (globally, then per site) fitted by replay. Nothing
 //! here is ever named as an effect.
 
+use super::session::SessionClock;
 use crate::recordings::Dataset;
 use crate::sim::torso::{ProbeFace, Torso, TorsoParams};
 
@@ -44,6 +45,7 @@ pub fn setup(dataset: &Dataset) -> Result<Setup, CalibrateError> {
             .map(|s| (s.site, s.origin))
             .collect(),
         recording_sites: meta.recordings.iter().map(|e| e.site.clone()).collect(),
+        session: SessionClock::of(dataset),
     })
 }
 
@@ -128,6 +130,9 @@ pub fn fit(setup: &Setup, dataset: &Dataset, split: &Split) -> Baseline {
     let k_per_unit = static_stiffness(&setup.torso) / setup.torso.stiffness;
     let k0 = initial_stiffness(dataset, &split.train, setup) / k_per_unit;
     let mut start = Model::baseline(k0.clamp(100.0, 20_000.0), setup.torso.damping, 0.0);
+    // The skin's friction as configured (echogym's default gel-coupled skin unless the
+    // dataset's `torso` says otherwise): `sliding_friction` is friction beyond it.
+    start.friction = setup.torso.friction;
     start.surface = geometry::sites(dataset);
     start.paths = geometry::paths(dataset);
     heights_from_onsets(dataset, &mut start);

@@ -2,9 +2,19 @@
 //! measured force, the baseline's prediction and residual, contact, depth below the
 //! fitted surface, probe velocity and acceleration, time, site and recording.
 
-use crate::recordings::Recording;
+use crate::recordings::{Recording, RecordingEntry};
 
 use super::replay::Prediction;
+use super::session::SessionClock;
+
+/// A force channel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Channel {
+    /// `fz`, the force along the probe's push.
+    Normal,
+    /// `fx, fy`, the tangential force (interleaved x, y per sample).
+    Lateral,
+}
 
 /// One recording's samples, aligned.
 #[derive(Debug, Clone)]
@@ -39,6 +49,15 @@ pub struct Series {
     pub az: Vec<f64>,
     /// Sample period [s].
     pub dt: f64,
+    /// Measured tangential force, world x and y [N].
+    pub measured_xy: Vec<[f64; 2]>,
+    /// Baseline's tangential force, world x and y [N].
+    pub predicted_xy: Vec<[f64; 2]>,
+    /// Probe velocity, world x and y [m/s].
+    pub vxy: Vec<[f64; 2]>,
+    /// Share of the session elapsed at each sample (0 at its first sample, 1 at its
+    /// last; see [`SessionClock`]).
+    pub session: Vec<f64>,
     /// Mean probe position in contact, world xy [m] (all samples without contact).
     pub xy: [f64; 2],
 }
@@ -47,12 +66,11 @@ impl Series {
     /// Build from a recording and the baseline's prediction of it.
     pub fn new(
         index: usize,
-        file: &str,
-        site: &str,
+        entry: &RecordingEntry,
         site_index: usize,
-        protocol: &str,
         rec: &Recording,
         prediction: &Prediction,
+        clock: &SessionClock,
     ) -> Self {
         let n = rec.len();
         let dt = (rec.t[n - 1] - rec.t[0]) / (n - 1).max(1) as f64;
@@ -82,10 +100,10 @@ impl Series {
         Self {
             xy,
             index,
-            file: file.to_owned(),
-            site: site.to_owned(),
+            file: entry.file.clone(),
+            site: entry.site.clone(),
             site_index,
-            protocol: protocol.to_owned(),
+            protocol: entry.protocol.clone(),
             t: rec.t.clone(),
             measured,
             predicted: prediction.fz.clone(),
@@ -96,6 +114,24 @@ impl Series {
             lateral_speed: rec.v.iter().map(|v| v[0].hypot(v[1])).collect(),
             az,
             dt,
+            measured_xy: rec.f.iter().map(|f| [f[0], f[1]]).collect(),
+            predicted_xy: prediction.fxy.clone(),
+            vxy: rec.v.iter().map(|v| [v[0], v[1]]).collect(),
+            session: rec.t.iter().map(|&t| clock.share(index, t)).collect(),
+        }
+    }
+
+    /// The residual in `channel` (measured minus predicted; x, y interleaved for the
+    /// tangential force).
+    pub fn residual_in(&self, channel: Channel) -> Vec<f64> {
+        match channel {
+            Channel::Normal => self.residual.clone(),
+            Channel::Lateral => self
+                .measured_xy
+                .iter()
+                .zip(&self.predicted_xy)
+                .flat_map(|(m, p)| [m[0] - p[0], m[1] - p[1]])
+                .collect(),
         }
     }
 

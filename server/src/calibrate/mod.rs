@@ -30,6 +30,7 @@ pub mod onset;
 pub mod replay;
 pub mod report;
 pub mod seed_method;
+pub mod session;
 pub mod split;
 pub mod synth;
 pub mod trajectory;
@@ -49,6 +50,9 @@ pub const FIRST_GAIN: f64 = 0.05;
 pub const ESCALATION: f64 = 1.5;
 /// Share of the validation excess error (above the noise floor) an effect must explain.
 pub const MIN_EXPLAINED: f64 = 0.3;
+/// A runner-up signature within this share of the best one's validation gain is
+/// modelled in the simulator too, and the simulator decides.
+pub const CLOSE_CALL: f64 = 0.75;
 /// LM iterations of the refit after each accepted effect.
 const EFFECT_ITERATIONS: usize = 5;
 
@@ -220,7 +224,7 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
     let mut calibrated = base.clone();
     let mut calibrated_fit = fitted.diagnostics.clone();
     let mut current: Vec<Series> = series.clone();
-    let mut current_fz: Vec<Vec<f64>> = series.iter().map(|s| s.predicted.clone()).collect();
+    let mut current_predictions = predictions.clone();
     let mut accepted: Vec<report::Accepted> = Vec::new();
     let mut excluded: Vec<&'static str> = Vec::new();
     let mut failed: Vec<report::Rejected> = Vec::new();
@@ -229,8 +233,12 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
     for _attempt in 0..6 {
         let k_now = calibrated.stiffness * k_per_unit;
         let mut skip = excluded.clone();
-        skip.extend(accepted.iter().map(|a| a.name));
-        let (mut found, round_rejected) = select_effects(
+        for a in &accepted {
+            skip.push(a.name);
+            // What an accepted effect contains is found already.
+            skip.extend(effects::named(a.name).and_then(|e| e.contains()));
+        }
+        let (found, round_rejected) = select_effects(
             &current,
             &is_train,
             &is_validation,
@@ -245,38 +253,89 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
             threshold,
         );
         rejected = round_rejected;
-        let Some(effect) = found.pop() else {
+        let Some(first) = found.first() else {
             break;
         };
-        let mut model = calibrated.clone();
-        apply_effects(&mut model, std::slice::from_ref(&effect), &setup);
-        let mut names: Vec<&str> = accepted.iter().map(|a| a.name).collect();
-        names.push(effect.name);
-        let (refitted, diagnostics) = fit_model(
-            &setup,
-            &dataset,
-            &split.train,
-            model,
-            &names,
-            Free::PER_SITE,
-            EFFECT_ITERATIONS,
-        );
-        let (model, _) = baseline::surface_elsewhere(&setup, &dataset, &split, refitted);
-        let predictions = replay_all(&setup, &model, &dataset.recordings, &all);
-        let fz: Vec<Vec<f64>> = predictions.iter().map(|p| p.fz.clone()).collect();
-        let before = rmse_against(&series, &split.validation, &current_fz);
-        let after = rmse_against(&series, &split.validation, &fz);
-        if before - after >= threshold * before {
-            calibrated = model;
-            calibrated_fit = diagnostics;
-            current_fz = fz;
-            current = series_of(&dataset, &setup, &predictions);
-            accepted.push(effect);
+        // A close call between signatures (linearised around a baseline the missing
+        // effect distorted) is decided in the simulator: the runner-up is modelled too
+        // and the better validation gain wins.
+        let contenders: Vec<&report::Accepted> = found
+            .iter()
+            .take(2)
+            .filter(|c| c.gain >= CLOSE_CALL * first.gain)
+            .collect();
+        let trials: Vec<Trial> = contenders
+            .iter()
+            .map(|effect| {
+                let entry = effects::named(effect.name).expect("selected from the catalogue");
+                let mut model = calibrated.clone();
+                apply_effects(&mut model, std::slice::from_ref(*effect), &setup);
+                // An effect this one contains is replaced by it (its parameter is this
+                // one's).
+                let replaced = entry.contains();
+                let mut names: Vec<&str> = accepted
+                    .iter()
+                    .map(|a| a.name)
+                    .filter(|name| Some(*name) != replaced)
+                    .collect();
+                names.push(effect.name);
+                let (refitted, diagnostics) = fit_model(
+                    &setup,
+                    &dataset,
+                    &split.train,
+                    model,
+                    &names,
+                    Free::PER_SITE,
+                    EFFECT_ITERATIONS,
+                );
+                let (model, _) = baseline::surface_elsewhere(&setup, &dataset, &split, refitted);
+                let predictions = replay_all(&setup, &model, &dataset.recordings, &all);
+                let channel = entry.channel();
+                let before =
+                    rmse_against(&dataset, &split.validation, &current_predictions, channel);
+                let after = rmse_against(&dataset, &split.validation, &predictions, channel);
+                tracing::debug!(
+                    "{} modelled in the simulator: validation {before:.4} → {after:.4} N",
+                    effect.name
+                );
+                Trial {
+                    effect: (*effect).clone(),
+                    replaced,
+                    model,
+                    diagnostics,
+                    predictions,
+                    before,
+                    after,
+                }
+            })
+            .collect();
+        let mut trials = trials;
+        trials.sort_by(|a, b| b.gain().total_cmp(&a.gain()));
+        let trial = trials.swap_remove(0);
+        // The runner-up stays a candidate: both may be present (the next round sees
+        // the residual with the winner modelled).
+        for other in trials {
+            tracing::debug!(
+                "close call: {} ({:.1} %) over {} ({:.1} %)",
+                trial.effect.name,
+                100.0 * trial.gain(),
+                other.effect.name,
+                100.0 * other.gain()
+            );
+        }
+        let (before, after) = (trial.before, trial.after);
+        if trial.gain() >= threshold {
+            calibrated = trial.model;
+            calibrated_fit = trial.diagnostics;
+            current = series_of(&dataset, &setup, &trial.predictions);
+            current_predictions = trial.predictions;
+            accepted.retain(|a| Some(a.name) != trial.replaced);
+            accepted.push(trial.effect);
             threshold *= ESCALATION;
         } else {
-            excluded.push(effect.name);
+            excluded.push(trial.effect.name);
             failed.push(report::Rejected {
-                name: effect.name,
+                name: trial.effect.name,
                 why: format!(
                     "its signature passed, but modelled in the simulator the validation RMSE went {before:.3} → {after:.3} N (needs {:.1} % lower)",
                     100.0 * threshold
@@ -294,7 +353,7 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
     rejected.extend(failed);
     let heldout = split.heldout();
     let verdict = unexplained::assess(&current, &heldout, noise, closest);
-    let calibrated_fz = current_fz;
+    let calibrated_fz = current_predictions.into_iter().map(|p| p.fz).collect();
 
     progress.stage("writing the report");
     let seed_fits = seed_method::seed_method(&series, -base.surface_offset);
@@ -323,6 +382,26 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
     Ok(outcome)
 }
 
+/// An effect modelled in the simulator and refitted, with its validation figures.
+struct Trial {
+    effect: report::Accepted,
+    /// The accepted effect it replaces (one it contains).
+    replaced: Option<&'static str>,
+    model: Model,
+    diagnostics: FitDiagnostics,
+    predictions: Vec<replay::Prediction>,
+    /// Validation RMSE before and after, in the effect's channel [N].
+    before: f64,
+    after: f64,
+}
+
+impl Trial {
+    /// Relative validation RMSE reduction.
+    fn gain(&self) -> f64 {
+        (self.before - self.after) / self.before.max(1e-12)
+    }
+}
+
 /// Every recording with a prediction of it (predictions in recording order).
 fn series_of(dataset: &Dataset, setup: &Setup, predictions: &[replay::Prediction]) -> Vec<Series> {
     dataset
@@ -338,15 +417,17 @@ fn series_of(dataset: &Dataset, setup: &Setup, predictions: &[replay::Prediction
                 .iter()
                 .position(|(name, _)| *name == e.site)
                 .unwrap_or(0);
-            Series::new(i, &e.file, &e.site, site_index, &e.protocol, rec, p)
+            Series::new(i, e, site_index, rec, p, &setup.session)
         })
         .collect()
 }
 
 /// One round of forward selection on the current residual: every candidate's signature
-/// is fitted on the train recordings and judged on the validation recordings; the best
-/// one that passes the round's `threshold` (and explains enough of the excess over the
-/// noise floor, and helps on train too) is returned, with the reasons the others failed.
+/// is fitted on the train recordings and judged on the validation recordings, in the
+/// channel it shows in; the best one that passes the round's `threshold` (and explains
+/// enough of the excess over the noise floor, and helps on train too) is returned, with
+/// the reasons the others failed; all that pass, best first. An effect that contains another that passed too
+/// (a drifting bias, a constant one) must beat it by the round's threshold.
 fn select_effects(
     series: &[Series],
     train: &[bool],
@@ -356,32 +437,38 @@ fn select_effects(
     excluded: &[&str],
     threshold: f64,
 ) -> (Vec<report::Accepted>, Vec<report::Rejected>) {
-    let rmse_where = |mask: &[bool], pred: &[Vec<f64>]| {
-        let rs: Vec<Vec<f64>> = series
+    let residuals = |channel: effects::Channel| -> Vec<Vec<f64>> {
+        series.iter().map(|s| s.residual_in(channel)).collect()
+    };
+    let by_channel = [effects::Channel::Normal, effects::Channel::Lateral].map(residuals);
+    let rmse_where = |channel: effects::Channel, mask: &[bool], pred: &[Vec<f64>]| {
+        let residual = &by_channel[usize::from(channel == effects::Channel::Lateral)];
+        let rs: Vec<Vec<f64>> = residual
             .iter()
             .enumerate()
             .filter(|(k, _)| mask[*k])
-            .map(|(k, s)| {
-                s.residual
-                    .iter()
-                    .zip(&pred[k])
-                    .map(|(r, q)| r - q)
-                    .collect()
-            })
+            .map(|(k, r)| r.iter().zip(&pred[k]).map(|(r, q)| r - q).collect())
             .collect();
         let refs: Vec<&[f64]> = rs.iter().map(|r| r.as_slice()).collect();
         rmse(&refs)
     };
-    let null = effects::readjusted(series, train, base);
-    let before_v = rmse_where(validation, &null);
-    let before_t = rmse_where(train, &null);
-    let mut best: Option<(f64, effects::Signature, f64, f64)> = None;
+    let normal_null = effects::readjusted(series, train, base);
+    let mut passed: Vec<(f64, effects::Signature, f64, f64, f64)> = Vec::new();
     let mut rejected = Vec::new();
-    for name in effects::CATALOGUE {
+    for effect in effects::CATALOGUE {
+        let name = effect.name();
         if excluded.contains(&name) {
             continue;
         }
-        let Some(sig) = effects::fit(name, series, train, base) else {
+        let channel = effect.channel();
+        let null = if channel == effects::Channel::Normal {
+            normal_null.clone()
+        } else {
+            effect.null(series, train, base)
+        };
+        let before_v = rmse_where(channel, validation, &null);
+        let before_t = rmse_where(channel, train, &null);
+        let Some(sig) = effect.signature(series, train, base) else {
             rejected.push(report::Rejected {
                 name,
                 why: "signature absent (fitted with the wrong sign, too small, or failing its specificity test)".into(),
@@ -389,17 +476,21 @@ fn select_effects(
             });
             continue;
         };
-        let after_v = rmse_where(validation, &sig.predicted);
-        let after_t = rmse_where(train, &sig.predicted);
+        let after_v = rmse_where(channel, validation, &sig.predicted);
+        let after_t = rmse_where(channel, train, &sig.predicted);
         let gain_v = (before_v - after_v) / before_v.max(1e-12);
         let gain_t = (before_t - after_t) / before_t.max(1e-12);
         // Beyond the noise floor: the effect must explain part of the excess error.
         let excess = (before_v * before_v - noise * noise).max(1e-12);
         let explained = (before_v * before_v - after_v * after_v) / excess;
+        tracing::debug!(
+            "signature {name}: validation {before_v:.4} → {after_v:.4} N, train {:+.1} %, {:.0} % of the excess, {:?}",
+            -100.0 * gain_t,
+            100.0 * explained,
+            sig.params
+        );
         if gain_v >= threshold && gain_t >= threshold / 2.0 && explained >= MIN_EXPLAINED {
-            if best.as_ref().is_none_or(|b| gain_v > b.0) {
-                best = Some((gain_v, sig, after_v, gain_t));
-            }
+            passed.push((gain_v, sig, before_v, after_v, gain_t));
         } else {
             rejected.push(report::Rejected {
                 name,
@@ -415,8 +506,18 @@ fn select_effects(
             });
         }
     }
-    let accepted = best
-        .map(|(gain, sig, after_v, gain_t)| report::Accepted {
+    passed.sort_by(|a, b| b.0.total_cmp(&a.0));
+    if let Some(best) = passed.first()
+        && let Some(inner) = effects::named(best.1.name).and_then(|e| e.contains())
+        && let Some(k) = passed.iter().position(|p| p.1.name == inner)
+        && best.3 > passed[k].3 * (1.0 - threshold)
+    {
+        let contained = passed.remove(k);
+        passed.insert(0, contained);
+    }
+    let accepted = passed
+        .into_iter()
+        .map(|(gain, sig, before_v, after_v, gain_t)| report::Accepted {
             name: sig.name,
             params: sig.params,
             evidence: format!(
@@ -426,23 +527,36 @@ fn select_effects(
                 100.0 * gain_t
             ),
             heldout_rmse_n: after_v,
+            gain,
         })
-        .into_iter()
         .collect();
     (accepted, rejected)
 }
 
-/// RMSE of the measured force against `predicted` over the recordings `indices`.
-fn rmse_against(series: &[Series], indices: &[usize], predicted: &[Vec<f64>]) -> f64 {
+/// RMSE of the measured force in `channel` against `predictions` over the recordings
+/// `indices`.
+fn rmse_against(
+    dataset: &Dataset,
+    indices: &[usize],
+    predictions: &[replay::Prediction],
+    channel: effects::Channel,
+) -> f64 {
     let rs: Vec<Vec<f64>> = indices
         .iter()
         .map(|&i| {
-            series[i]
-                .measured
-                .iter()
-                .zip(&predicted[i])
-                .map(|(m, q)| m - q)
-                .collect()
+            let rec = &dataset.recordings[i];
+            let p = &predictions[i];
+            match channel {
+                effects::Channel::Normal => {
+                    rec.f.iter().zip(&p.fz).map(|(m, q)| m[2] - q).collect()
+                }
+                effects::Channel::Lateral => rec
+                    .f
+                    .iter()
+                    .zip(&p.fxy)
+                    .flat_map(|(m, q)| [m[0] - q[0], m[1] - q[1]])
+                    .collect(),
+            }
         })
         .collect();
     let refs: Vec<&[f64]> = rs.iter().map(|r| r.as_slice()).collect();

@@ -4,8 +4,8 @@
 //! signatures turned into simulator elements.
 
 use crate::recordings::Dataset;
-use crate::sim::torso::Relaxation;
 
+use super::effects;
 use super::fit::{Bound, Convergence, levenberg_marquardt_blocks};
 use super::geometry::{PATH_PRIOR, PRIOR_FORCE_N, Source};
 use super::replay::{Model, Setup, replay_all};
@@ -22,7 +22,8 @@ const FIT_RATE_HZ: f64 = 100.0;
 pub struct Estimate {
     /// `effect.key`, `baseline.key` or `surface.<site>.key`.
     pub name: String,
-    /// Value (in the model's units; the log of τ is reported as τ).
+    /// Value (in the model's units; parameters fitted as logarithms are reported in
+    /// natural units).
     pub value: f64,
     /// 95 % interval.
     pub interval: [f64; 2],
@@ -92,6 +93,8 @@ struct Packed {
     bounds: Vec<Bound>,
     names: Vec<String>,
     touch: Vec<Touch>,
+    /// Fitted as a logarithm.
+    log: Vec<bool>,
 }
 
 impl Packed {
@@ -100,6 +103,7 @@ impl Packed {
         self.bounds.push(Bound { lo, hi, step });
         self.names.push(name);
         self.touch.push(touch);
+        self.log.push(false);
     }
 
     fn global(&mut self, name: &str, value: f64, range: (f64, f64, f64)) {
@@ -171,97 +175,31 @@ fn pack(
 }
 
 fn pack_effect(p: &mut Packed, model: &Model, name: &str) {
-    match name {
-        "sensor_bias" => p.global("sensor_bias.fz_n", model.bias, (-20.0, 20.0, 0.01)),
-        "sensor_delay" => p.global("sensor_delay.delay_s", model.delay, (0.0, 0.5, 0.002)),
-        "tissue_inertia" => p.global(
-            "tissue_inertia.mass_kg",
-            model.moving_mass,
-            (0.0, 20.0, 0.02),
-        ),
-        "nonlinear_stiffness" => p.global(
-            "nonlinear_stiffness.exponent",
-            model.exponent,
-            (0.5, 4.0, 0.01),
-        ),
-        "viscoelastic_relaxation" => {
-            let r = model.relaxation.clone().unwrap_or(Relaxation {
-                ratio: 0.5,
-                tau_s: 1.0,
-            });
-            p.global("viscoelastic_relaxation.ratio", r.ratio, (0.0, 10.0, 0.01));
-            p.global(
-                "viscoelastic_relaxation.tau_s",
-                r.tau_s.ln(),
-                // The signature's range: tissue relaxes over 0.1 s to minutes; a faster
-                // branch is indistinguishable from damping or a sensor delay (a 21 ms
-                // delay was refitted as a 27 ms branch before this bound).
-                (RELAXATION_TAU_S[0].ln(), RELAXATION_TAU_S[1].ln(), 0.02),
-            );
-        }
-        // Breathing's centre rise and profile (phases and rates stay the signature's).
-        "breathing_motion" => {
-            let (_, amplitude) = model.breathing.unwrap_or((0.25, 0.0));
-            p.global("breathing_motion.amplitude_m", amplitude, (0.0, 0.03, 5e-5));
-            p.global(
-                "breathing_motion.edge_rise",
-                model.breathing_edge_rise,
-                (0.0, 1.0, 0.02),
-            );
-        }
-        "site_heterogeneity" => {
-            for (site, s) in &model.site_scale {
-                p.global(
-                    &format!("site_heterogeneity.scale.{site}"),
-                    *s,
-                    (0.1, 10.0, 0.005),
-                );
-            }
-        }
-        other => unreachable!("effect {other} has no simulator parameters"),
+    let effect = effects::named(name).expect("accepted effects are catalogue effects");
+    for parameter in effect.parameters(model) {
+        let value = if parameter.log {
+            parameter.value.max(1e-12).ln()
+        } else {
+            parameter.value
+        };
+        p.push(
+            format!("{name}.{}", parameter.key),
+            value,
+            parameter.range,
+            Touch::All,
+        );
+        *p.log.last_mut().expect("just pushed") = parameter.log;
     }
 }
 
-fn unpack(template: &Model, names: &[String], x: &[f64]) -> Model {
+fn unpack(template: &Model, names: &[String], log: &[bool], x: &[f64]) -> Model {
     let mut m = template.clone();
-    for (name, &v) in names.iter().zip(x) {
+    for (j, (name, &v)) in names.iter().zip(x).enumerate() {
         let (head, key) = name.split_once('.').expect("names are dotted");
         match (head, key) {
             ("baseline", "stiffness") => m.stiffness = v,
             ("baseline", "damping") => m.damping = v,
             ("baseline", "surface_offset_m") => m.surface_offset = v,
-            ("sensor_bias", _) => m.bias = v,
-            ("sensor_delay", _) => m.delay = v,
-            ("tissue_inertia", _) => m.moving_mass = v,
-            ("nonlinear_stiffness", _) => m.exponent = v,
-            ("viscoelastic_relaxation", "ratio") => {
-                m.relaxation
-                    .get_or_insert(Relaxation {
-                        ratio: 0.5,
-                        tau_s: 1.0,
-                    })
-                    .ratio = v;
-            }
-            ("viscoelastic_relaxation", "tau_s") => {
-                m.relaxation
-                    .get_or_insert(Relaxation {
-                        ratio: 0.5,
-                        tau_s: 1.0,
-                    })
-                    .tau_s = v.exp();
-            }
-            ("breathing_motion", "amplitude_m") => {
-                if let Some(b) = m.breathing.as_mut() {
-                    b.1 = v;
-                }
-            }
-            ("breathing_motion", "edge_rise") => m.breathing_edge_rise = v,
-            ("site_heterogeneity", key) => {
-                let site = key.trim_start_matches("scale.");
-                if let Some(s) = m.site_scale.iter_mut().find(|(n, _)| n == site) {
-                    s.1 = v;
-                }
-            }
             ("surface", key) => {
                 let site = key.trim_end_matches(".height_m");
                 if let Some(g) = m.surface.iter_mut().find(|g| g.site == site) {
@@ -279,7 +217,15 @@ fn unpack(template: &Model, names: &[String], x: &[f64]) -> Model {
                     }
                 }
             }
-            _ => unreachable!("unknown parameter {name}"),
+            (effect, key) => {
+                let effect = effects::named(effect).expect("parameters are named after effects");
+                let v = if log.get(j).copied().unwrap_or(false) {
+                    v.exp()
+                } else {
+                    v
+                };
+                effect.set(&mut m, key, v);
+            }
         }
     }
     m
@@ -320,8 +266,12 @@ pub fn fit_model(
         })
         .collect();
     let with_prior = free.geometry != Geometry::Fixed;
+    // The tangential force enters only with an effect that shows in it.
+    let lateral = effects
+        .iter()
+        .any(|name| effects::named(name).is_some_and(|e| e.channel() == effects::Channel::Lateral));
     let residuals = |x: &[f64], blocks: &[usize]| -> Vec<Vec<f64>> {
-        let candidate = unpack(&model, &packed.names, x);
+        let candidate = unpack(&model, &packed.names, &packed.log, x);
         let indices: Vec<usize> = blocks.iter().map(|&b| fit_on[b]).collect();
         let predictions = replay_all(setup, &candidate, &dataset.recordings, &indices);
         blocks
@@ -334,6 +284,11 @@ pub fn fit_model(
                     .step_by(strides[b])
                     .map(|k| rec.f[k][2] - p.fz[k])
                     .collect();
+                if lateral {
+                    for k in (0..rec.len()).step_by(strides[b]) {
+                        rows.extend([rec.f[k][0] - p.fxy[k][0], rec.f[k][1] - p.fxy[k][1]]);
+                    }
+                }
                 if with_prior && let Some(path) = candidate.paths.iter().find(|p| p.recording == i)
                 {
                     // The recording's geometry prior (see `geometry::PATH_PRIOR`).
@@ -362,7 +317,7 @@ pub fn fit_model(
         fit.evaluations,
         started.elapsed().as_secs_f64()
     );
-    let mut fitted = unpack(&model, &packed.names, &fit.x);
+    let mut fitted = unpack(&model, &packed.names, &packed.log, &fit.x);
     // Record which surface parameters this fit determined, and from which recordings.
     let source = match free.geometry {
         Geometry::Training => Source::Training,
@@ -397,7 +352,7 @@ pub fn fit_model(
         .enumerate()
         .map(|(j, name)| {
             let (v, h) = (fit.x[j], fit.half_width_95[j]);
-            let (value, interval) = if name == "viscoelastic_relaxation.tau_s" {
+            let (value, interval) = if packed.log[j] {
                 (v.exp(), [(v - h).exp(), (v + h).exp()])
             } else {
                 (v, [v - h, v + h])
@@ -431,51 +386,9 @@ pub fn fit_model(
 
 /// Turn accepted signatures into simulator elements of `model`.
 pub fn apply_effects(model: &mut Model, accepted: &[Accepted], setup: &Setup) {
-    let num = |a: &Accepted, key: &str| a.params.get(key).and_then(|v| v.as_f64()).unwrap_or(0.0);
     for a in accepted {
-        match a.name {
-            "sensor_bias" => model.bias = num(a, "fz_n"),
-            "sensor_delay" => model.delay = num(a, "delay_s"),
-            "tissue_inertia" => model.moving_mass = num(a, "mass_kg"),
-            "nonlinear_stiffness" => model.exponent = num(a, "exponent"),
-            "viscoelastic_relaxation" => {
-                model.relaxation = Some(Relaxation {
-                    ratio: num(a, "ratio"),
-                    tau_s: num(a, "tau_s"),
-                });
-            }
-            "breathing_motion" => {
-                model.breathing = Some((num(a, "freq_hz"), num(a, "amplitude_m")));
-                let list = |key: &str| -> Vec<f64> {
-                    a.params
-                        .get(key)
-                        .and_then(|v| v.as_array())
-                        .map(|v| v.iter().map(|p| p.as_f64().unwrap_or(0.0)).collect())
-                        .unwrap_or_default()
-                };
-                model.breathing_phase = list("phase_rad");
-                model.breathing_freq = list("freq_by_recording_hz");
-                model.breathing_rate_slope = list("rate_slope_by_recording_hz_s");
-                model.breathing_edge_rise = num(a, "edge_rise");
-            }
-            "site_heterogeneity" => {
-                if let Some(map) = a
-                    .params
-                    .get("stiffness_scale_by_site")
-                    .and_then(|v| v.as_object())
-                {
-                    model.site_scale = setup
-                        .sites
-                        .iter()
-                        .filter_map(|(name, _)| {
-                            map.get(name)
-                                .and_then(|v| v.as_f64())
-                                .map(|s| (name.clone(), s))
-                        })
-                        .collect();
-                }
-            }
-            other => unreachable!("effect {other} has no simulator element"),
-        }
+        effects::named(a.name)
+            .expect("accepted effects are catalogue effects")
+            .apply(&a.params, model, setup);
     }
 }

@@ -12,10 +12,12 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::geometry::{self, PathSurface, SiteSurface};
+use super::session::SessionClock;
 use crate::recordings::Recording;
+use crate::sim::ft_sensor::low_pass_alpha;
 use crate::sim::torso::{
-    Breathing, BreathingParams, ProbeFace, ProbeKinematics, Relaxation, SiteStiffness, Torso,
-    TorsoParams,
+    Breathing, BreathingParams, DepthDamping, ProbeFace, ProbeKinematics, Relaxation,
+    SiteStiffness, Torso, TorsoParams,
 };
 
 /// Simulation step of replays [s].
@@ -63,6 +65,26 @@ pub struct Model {
     pub bias: f64,
     /// Sensor delay [s].
     pub delay: f64,
+    /// Sensor low-pass cut-off [Hz] (0: none).
+    #[serde(default)]
+    pub filter_cutoff_hz: f64,
+    /// Change of the sensor's fz bias from the session's first sample to its last [N]
+    /// (`bias` is the value at the first).
+    #[serde(default)]
+    pub bias_drift_n: f64,
+    /// Damping growing with indentation.
+    #[serde(default)]
+    pub depth_damping: Option<DepthDamping>,
+    /// Coulomb coefficient of probe–skin friction (the baseline has none).
+    #[serde(default)]
+    pub friction: f64,
+    /// Viscous probe–skin friction [N·s/m].
+    #[serde(default)]
+    pub friction_viscous: f64,
+    /// Tangential force per newton of normal force, world x and y: a probe or sensor
+    /// not exactly upright. A nuisance, fitted only with the tangential channel.
+    #[serde(default)]
+    pub lateral_share: [f64; 2],
     /// Stiffness scale per site name.
     pub site_scale: Vec<(String, f64)>,
     /// The body's surface height at each site relative to `surface_offset` (baseline
@@ -91,6 +113,12 @@ impl Model {
             moving_mass: 0.0,
             bias: 0.0,
             delay: 0.0,
+            filter_cutoff_hz: 0.0,
+            bias_drift_n: 0.0,
+            depth_damping: None,
+            friction: 0.0,
+            friction_viscous: 0.0,
+            lateral_share: [0.0; 2],
             site_scale: Vec::new(),
             surface: Vec::new(),
             paths: Vec::new(),
@@ -116,6 +144,8 @@ pub struct Setup {
     pub sites: Vec<(String, [f64; 2])>,
     /// Site of each recording, by recording index.
     pub recording_sites: Vec<String>,
+    /// When each recording was made on the session's clock.
+    pub session: SessionClock,
 }
 
 impl Setup {
@@ -132,6 +162,10 @@ impl Setup {
         t.exponent = model.exponent;
         t.relaxation = model.relaxation.clone();
         t.moving_mass = model.moving_mass;
+        t.depth_damping = model.depth_damping.clone();
+        // The baseline has no tangential force; `sliding_friction` adds it.
+        t.friction = model.friction;
+        t.friction_viscous = model.friction_viscous;
         t.stiffness_sites = model
             .site_scale
             .iter()
@@ -155,6 +189,8 @@ impl Setup {
 pub struct Prediction {
     /// Predicted force along world z [N] (pressing > 0), sensor effects included.
     pub fz: Vec<f64>,
+    /// Predicted tangential force, world x and y [N], sensor effects included.
+    pub fxy: Vec<[f64; 2]>,
     /// Whether the probe touched the skin (sensor effects excluded).
     pub contact: Vec<bool>,
     /// Depth of the probe below the model's rest surface [m] (negative above).
@@ -192,6 +228,7 @@ pub fn replay(setup: &Setup, model: &Model, recording: &Recording, index: usize)
         // Out-of-range candidates predict nothing (the fit sees a large error).
         return Prediction {
             fz: vec![0.0; recording.len()],
+            fxy: vec![[0.0; 2]; recording.len()],
             contact: vec![false; recording.len()],
             depth: vec![0.0; recording.len()],
         };
@@ -240,6 +277,8 @@ pub fn replay(setup: &Setup, model: &Model, recording: &Recording, index: usize)
     let steps = ((t_end - t0) / REPLAY_DT).ceil() as usize + 1;
     let mut sim_t = Vec::with_capacity(steps);
     let mut sim_f = Vec::with_capacity(steps);
+    let mut sim_fx = Vec::with_capacity(steps);
+    let mut sim_fy = Vec::with_capacity(steps);
     let mut sim_contact = Vec::with_capacity(steps);
     let mut at_rest = !breathing;
     for k in 0..steps {
@@ -251,8 +290,8 @@ pub fn replay(setup: &Setup, model: &Model, recording: &Recording, index: usize)
         p[2] -= z;
         v[2] -= dz;
         let clear = p[2] + REPLAY_DT * v[2].min(0.0) > top + 0.002;
-        let (fz, contact) = if clear && at_rest && model.moving_mass == 0.0 {
-            (0.0, false)
+        let (f, contact) = if clear && at_rest && model.moving_mass == 0.0 {
+            ([0.0; 3], false)
         } else {
             let probe = ProbeKinematics::upright(p, v);
             let w = torso.step(REPLAY_DT, Some(&probe));
@@ -262,16 +301,35 @@ pub fn replay(setup: &Setup, model: &Model, recording: &Recording, index: usize)
                     && torso.displacements().iter().all(|u| u.abs() < 1e-7)
                     && model.relaxation.is_none();
             }
-            (w.force[2], w.in_contact())
+            (w.force, w.in_contact())
         };
         sim_t.push(t);
-        sim_f.push(fz);
+        sim_fx.push(f[0]);
+        sim_fy.push(f[1]);
+        sim_f.push(f[2]);
         sim_contact.push(contact);
+    }
+    // The sensor chain: body force → low-pass → delay (the two commute) → bias.
+    if model.filter_cutoff_hz > 0.0 {
+        let alpha = low_pass_alpha(model.filter_cutoff_hz, REPLAY_DT);
+        for series in [&mut sim_f, &mut sim_fx, &mut sim_fy] {
+            let mut y = series[0];
+            for v in series.iter_mut() {
+                y += alpha * (*v - y);
+                *v = y;
+            }
+        }
     }
     let mut out = Prediction::default();
     for (i, &t) in recording.t.iter().enumerate() {
         let f = interp(&sim_t, &sim_f, t - model.delay);
-        out.fz.push(f + model.bias);
+        let drift = model.bias_drift_n * setup.session.share(index, t);
+        out.fz.push(f + model.bias + drift);
+        let [sx, sy] = model.lateral_share;
+        out.fxy.push([
+            interp(&sim_t, &sim_fx, t - model.delay) + sx * f,
+            interp(&sim_t, &sim_fy, t - model.delay) + sy * f,
+        ]);
         let k = (((t - t0) / REPLAY_DT).round() as usize).min(steps - 1);
         out.contact.push(sim_contact[k]);
         let (z, _) = surface([recording.p[i][0], recording.p[i][1]], [0.0; 3]);
@@ -340,6 +398,7 @@ mod tests {
             center_xy: [0.0, 0.0],
             sites: Vec::new(),
             recording_sites: Vec::new(),
+            session: SessionClock::default(),
             torso,
         };
         let model = Model::baseline(1324.17, 17.59, 0.0);

@@ -10,6 +10,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
+use super::effects::{self, ReportContext};
 use super::features::rmse;
 use super::model::FitDiagnostics;
 use super::replay::Model;
@@ -32,6 +33,9 @@ pub struct Accepted {
     pub evidence: String,
     /// Held-out RMSE with its signature added [N].
     pub heldout_rmse_n: f64,
+    /// Relative validation RMSE reduction of its signature.
+    #[serde(skip)]
+    pub gain: f64,
 }
 
 /// A candidate not accepted.
@@ -87,38 +91,31 @@ fn model_json(m: &Model) -> serde_json::Value {
         "moving_mass_kg": m.moving_mass,
         "sensor_bias_fz_n": m.bias,
         "sensor_delay_s": m.delay,
+        "sensor_low_pass_hz": m.filter_cutoff_hz,
+        "sensor_bias_drift_n": m.bias_drift_n,
+        "depth_damping": m.depth_damping,
+        "friction": m.friction,
+        "friction_viscous_ns_per_m": m.friction_viscous,
+        "probe_tilt_share": m.lateral_share,
         "stiffness_scale_by_site": m.site_scale.iter().cloned().collect::<std::collections::BTreeMap<_, _>>(),
     })
 }
 
 /// Fitted parameters of an accepted effect, from the calibrated model (catalogue keys).
-fn calibrated_params(name: &str, m: &Model, site_stiffness: &[(String, f64)]) -> serde_json::Value {
-    match name {
-        "sensor_bias" => serde_json::json!({"fz_n": m.bias}),
-        "sensor_delay" => serde_json::json!({"delay_s": m.delay}),
-        "tissue_inertia" => serde_json::json!({"mass_kg": m.moving_mass}),
-        "nonlinear_stiffness" => serde_json::json!({"exponent": m.exponent}),
-        "viscoelastic_relaxation" => {
-            let r = m.relaxation.clone().unwrap_or_default();
-            serde_json::json!({"tau_s": r.tau_s, "ratio": r.ratio})
-        }
-        "breathing_motion" => {
-            let (f, a) = m.breathing.unwrap_or((0.0, 0.0));
-            serde_json::json!({"freq_hz": f, "amplitude_m": a, "edge_rise": m.breathing_edge_rise})
-        }
-        "site_heterogeneity" => {
-            let by: serde_json::Map<String, serde_json::Value> = site_stiffness
-                .iter()
-                .map(|(s, v)| (s.clone(), (*v).into()))
-                .collect();
-            let scale: serde_json::Map<String, serde_json::Value> = m
-                .site_scale
-                .iter()
-                .map(|(s, v)| (s.clone(), (*v).into()))
-                .collect();
-            serde_json::json!({"stiffness_by_site": by, "unit": "N/m (static contact stiffness at 5 mm)", "spring_scale_by_site": scale})
-        }
-        _ => serde_json::Value::Null,
+fn calibrated_params(
+    o: &Outcome,
+    name: &str,
+    site_stiffness: &[(String, f64)],
+) -> serde_json::Value {
+    effects::named(name).map_or(serde_json::Value::Null, |e| {
+        e.report(&o.calibrated, &report_context(o, site_stiffness))
+    })
+}
+
+fn report_context<'a>(o: &Outcome, site_stiffness: &'a [(String, f64)]) -> ReportContext<'a> {
+    ReportContext {
+        site_stiffness,
+        session_span_s: o.setup.session.length(),
     }
 }
 
@@ -180,7 +177,7 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
         .accepted
         .iter()
         .map(|a| {
-            let params = calibrated_params(a.name, &o.calibrated, &site_stiffness);
+            let params = calibrated_params(o, a.name, &site_stiffness);
             let intervals: serde_json::Map<String, serde_json::Value> = params
                 .as_object()
                 .into_iter()
@@ -311,6 +308,8 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
     // World z up; an upright probe's sensor z points down.
     ft.bias[2] = -m.bias;
     ft.delay_s = m.delay;
+    ft.low_pass_hz = m.filter_cutoff_hz;
+    ft.bias_drift[2] = -m.bias_drift_n / o.setup.session.length().max(1e-9);
     let scene = CalibratedScene {
         torso: o.setup.torso_params(m),
         breathing: m.breathing.map(|(f, a)| BreathingParams {
@@ -350,53 +349,10 @@ fn site_stiffness(o: &Outcome) -> Vec<(String, f64)> {
         .collect()
 }
 
-fn effect_sentence(name: &str, m: &Model, site_stiffness: &[(String, f64)]) -> String {
-    match name {
-        "sensor_bias" => format!(
-            "the force sensor reads a constant {:+.2} N offset (e.g. uncompensated tool weight); added a sensor bias",
-            m.bias
-        ),
-        "sensor_delay" => format!(
-            "the force lags the motion by ≈ {:.0} ms; added a sensor delay stage",
-            1000.0 * m.delay
-        ),
-        "tissue_inertia" => format!(
-            "tissue of ≈ {:.2} kg moves with the probe (inertial force in fast motion); added a moving mass to the contact",
-            m.moving_mass
-        ),
-        "nonlinear_stiffness" => format!(
-            "the tissue stiffens with depth (force ∝ depth^{:.2}); replaced the linear particle springs with a power law",
-            m.exponent
-        ),
-        "viscoelastic_relaxation" => {
-            let r = m.relaxation.clone().unwrap_or_default();
-            format!(
-                "force relaxes during holds with τ ≈ {:.2} s (branch stiffness {:.0} % of the spring), with memory between pushes; added a Maxwell branch to every particle joint",
-                r.tau_s,
-                100.0 * r.ratio
-            )
-        }
-        "breathing_motion" => {
-            let (f, a) = m.breathing.unwrap_or((0.0, 0.0));
-            format!(
-                "the surface moves periodically at {f:.3} Hz ({:.1} breaths/min, ≈ {:.1} mm at the centre, {:.0} % of that at the edges); added breathing driving the torso's top",
-                f * 60.0,
-                1000.0 * a,
-                100.0 * m.breathing_edge_rise
-            )
-        }
-        "site_heterogeneity" => {
-            let parts: Vec<String> = site_stiffness
-                .iter()
-                .map(|(s, v)| format!("{s} {v:.0} N/m"))
-                .collect();
-            format!(
-                "stiffness differs by site ({}); added local stiffness at the sites",
-                parts.join(", ")
-            )
-        }
-        _ => String::new(),
-    }
+fn effect_sentence(o: &Outcome, name: &str, site_stiffness: &[(String, f64)]) -> String {
+    effects::named(name).map_or_else(String::new, |e| {
+        e.sentence(&o.calibrated, &report_context(o, site_stiffness))
+    })
 }
 
 fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> String {
@@ -517,7 +473,7 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
             s,
             "- **{}**: {}. Evidence: {}.",
             a.name,
-            effect_sentence(a.name, &o.calibrated, site_stiffness),
+            effect_sentence(o, a.name, site_stiffness),
             a.evidence
         );
     }

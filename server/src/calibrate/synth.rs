@@ -9,7 +9,9 @@
 //! F(t)   = K_site·δ₀·(δ/δ₀)^n  + C·δ̇  + k_m·(δ − x_m)  − (m₀ + m)·p̈_z      (δ > 0, F ≥ 0)
 //! ẋ_m    = (δ⁺ − x_m)/τ                                 Maxwell branch (memory between pushes)
 //! z_surface(t) = z_true + A·(1 − cos φ(t))/2,  φ̇ = 2π·f·(1 + drift)              breathing
-//! F_meas(t) = F(t − delay) + bias + N(0, σ²)           the wrist sensor
+//!          + r·C·(δ/10 mm)^p·δ̇                                   depth-dependent damping
+//! F_t(t) = −(μ·F·tanh(|v|/1 mm/s) + b·|v|)·v̂                  friction while sliding
+//! F_meas(t) = LP_fc(F)(t − delay) + bias + Δ·s(t) + N(0, σ²)    the wrist sensor
 //! ```
 //!
 //! with an inherent moving mass `m₀` (tissue always has some), per-site stiffness
@@ -17,7 +19,9 @@
 //! from the stated nominal height, sample rates of 100–2000 Hz per recording, force noise
 //! σ 0.03–0.2 N, and the protocols of a calibration session: presses with holds at several
 //! depths and speeds, depth chirps, lateral slides at constant depth, at the seed's five
-//! sites. Lateral forces carry Coulomb friction during slides. Each concealed effect
+//! sites. Lateral forces carry gel friction (μ = 0.1, as echogym's default skin) during
+//! slides; `sliding_friction` raises it. `s(t)` is the share of the session elapsed
+//! (recordings back to back). Each concealed effect
 //! switches its term on with parameters drawn from physiological ranges; `truth.json`
 //! beside the dataset folder records everything.
 
@@ -33,7 +37,7 @@ use crate::envs::calibration_press::SITES;
 use crate::recordings::{DatasetWriter, Recording, RecordingsError};
 
 /// The concealable effects (the catalogue's names).
-pub const EFFECTS: [&str; 7] = [
+pub const EFFECTS: [&str; 11] = [
     "nonlinear_stiffness",
     "viscoelastic_relaxation",
     "breathing_motion",
@@ -41,7 +45,15 @@ pub const EFFECTS: [&str; 7] = [
     "sensor_bias",
     "sensor_delay",
     "site_heterogeneity",
+    "sliding_friction",
+    "sensor_filter",
+    "bias_drift",
+    "depth_dependent_damping",
 ];
+
+/// Coulomb coefficient of the gel-coupled skin without `sliding_friction` (echogym's
+/// default skin friction, so the baseline expects it).
+const GEL_FRICTION: f64 = 0.1;
 
 /// Torso centre of generated datasets [m, world xy].
 const CENTER_XY: [f64; 2] = [0.0, 0.0];
@@ -111,6 +123,14 @@ struct TruthModel {
     delay: f64,
     noise: f64,
     surface_z: f64,
+    /// Coulomb coefficient and viscous friction [N·s/m].
+    friction: (f64, f64),
+    /// Sensor low-pass cut-off [Hz] (0: none).
+    filter_hz: f64,
+    /// Sensor bias at the session's start and its change over the session [N].
+    drift: (f64, f64),
+    /// Extra damping at 10 mm over the linear damping, and its depth exponent.
+    depth_damping: (f64, f64),
 }
 
 /// One probe trajectory: `t ↦ (x, y, z)` [m] at 0.25 ms resolution.
@@ -264,7 +284,42 @@ pub fn generate(
         },
         noise: rng.random_range(0.03..0.2),
         surface_z: NOMINAL_Z + rng.random_range(-0.003..0.003),
+        friction: (GEL_FRICTION, 0.0),
+        filter_hz: 0.0,
+        drift: (0.0, 0.0),
+        depth_damping: (0.0, 1.0),
     };
+    // The effects added later draw from their own stream, so the datasets of the
+    // first seven are what they were.
+    let mut later = Pcg64Mcg::seed_from_u64(seed ^ 0x1a7e_eff5);
+    let mut model = model;
+    if has("sliding_friction") {
+        model.friction = (
+            GEL_FRICTION + scale * later.random_range(0.1..0.4),
+            scale * later.random_range(5.0..30.0),
+        );
+    }
+    if has("sensor_filter") {
+        model.filter_hz = later.random_range(3.0..10.0) / scale;
+    }
+    if has("bias_drift") {
+        let start: f64 = later.random_range(-0.3..0.3);
+        let total: f64 = scale * later.random_range(0.8..2.5);
+        model.drift = (
+            start,
+            if later.random_bool(0.5) {
+                total
+            } else {
+                -total
+            },
+        );
+    }
+    if has("depth_dependent_damping") {
+        model.depth_damping = (
+            scale * later.random_range(2.0..5.0),
+            later.random_range(1.0..1.5),
+        );
+    }
 
     let dataset_dir = out.join("dataset");
     std::fs::create_dir_all(out).map_err(|source| SynthError::Io {
@@ -294,12 +349,27 @@ pub fn generate(
         ])
         .collect();
     let mut listed = Vec::new();
+    let mut made = Vec::new();
     for (k, &(site, protocol)) in plan.iter().enumerate() {
         let rate = rates[rng.random_range(0..rates.len())];
         let path = trajectory(protocol, site, &model, &mut rng);
         let recording = measure(&path, site, &model, rate, &mut rng);
         let file = format!("{:02}_{}_{}.csv", k, SITES[site].0, protocol);
         listed.push(serde_json::json!({"file": file, "site": SITES[site].0, "protocol": protocol, "rate_hz": rate}));
+        made.push((file, site, protocol, recording));
+    }
+    // The drifting bias runs on the session clock: recordings back to back.
+    let session: f64 = made
+        .iter()
+        .map(|m| m.3.t.last().copied().unwrap_or(0.0))
+        .sum();
+    let mut start = 0.0;
+    for (file, site, protocol, mut recording) in made {
+        let (b0, total) = model.drift;
+        for (t, f) in recording.t.iter().zip(&mut recording.f) {
+            f[2] += b0 + total * (start + t) / session.max(1e-9);
+        }
+        start += recording.t.last().copied().unwrap_or(0.0);
         writer.add(&file, SITES[site].0, protocol, recording);
     }
     writer.finish()?;
@@ -339,6 +409,30 @@ pub fn generate(
         params.insert(
             "sensor_delay".into(),
             serde_json::json!({"delay_s": model.delay}),
+        );
+    }
+    if has("sliding_friction") {
+        params.insert(
+            "sliding_friction".into(),
+            serde_json::json!({"mu": model.friction.0, "viscous_ns_per_m": model.friction.1}),
+        );
+    }
+    if has("sensor_filter") {
+        params.insert(
+            "sensor_filter".into(),
+            serde_json::json!({"cutoff_hz": model.filter_hz}),
+        );
+    }
+    if has("bias_drift") {
+        params.insert(
+            "bias_drift".into(),
+            serde_json::json!({"fz_n": model.drift.0, "total_n": model.drift.1}),
+        );
+    }
+    if has("depth_dependent_damping") {
+        params.insert(
+            "depth_dependent_damping".into(),
+            serde_json::json!({"ratio_at_10mm": model.depth_damping.0, "exponent": model.depth_damping.1}),
         );
     }
     if has("site_heterogeneity") {
@@ -468,19 +562,33 @@ fn measure(path: &Path3, site: usize, m: &TruthModel, rate: f64, rng: &mut Pcg64
                 * NONLINEAR_REFERENCE_DEPTH
                 * (depth / NONLINEAR_REFERENCE_DEPTH).powf(m.exponent);
             let relax = m.maxwell.map_or(0.0, |(k_m, _)| k_m * (depth - x_m));
-            fz = (elastic + m.damping * depth_rate + relax - m.moving_mass * az).max(0.0);
+            let (ratio, p) = m.depth_damping;
+            let damping = m.damping * (1.0 + ratio * (depth / NONLINEAR_REFERENCE_DEPTH).powf(p));
+            fz = (elastic + damping * depth_rate + relax - m.moving_mass * az).max(0.0);
         }
-        // Coulomb friction against lateral motion while pressing (gel: μ ≈ 0.1).
+        // Friction against lateral motion while pressing: Coulomb (smoothed) and viscous.
         let vx = (next[0] - prev[0]) / (2.0 * TRUTH_DT);
         let vy = (next[1] - prev[1]) / (2.0 * TRUTH_DT);
         let speed = vx.hypot(vy);
-        let (fx, fy) = if speed > 1e-6 {
-            let mu = 0.1 * fz * (speed / 1e-3).tanh();
-            (-mu * vx / speed, -mu * vy / speed)
+        let (fx, fy) = if speed > 1e-6 && fz > 0.0 {
+            let (mu, viscous) = m.friction;
+            let f = mu * fz * (speed / 1e-3).tanh() + viscous * speed;
+            (-f * vx / speed, -f * vy / speed)
         } else {
             (0.0, 0.0)
         };
         *slot = [fx, fy, fz];
+    }
+    if m.filter_hz > 0.0 {
+        // The sensor's first-order low-pass (commutes with the delay below).
+        let alpha = 1.0 - (-std::f64::consts::TAU * m.filter_hz * TRUTH_DT).exp();
+        let mut y = force[0];
+        for f in &mut force {
+            for c in 0..3 {
+                y[c] += alpha * (f[c] - y[c]);
+            }
+            *f = y;
+        }
     }
     let noise = Normal::new(0.0, m.noise).expect("finite");
     let duration = path.duration() - m.delay;

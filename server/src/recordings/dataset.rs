@@ -44,6 +44,9 @@ pub struct Segment {
     pub of: usize,
     /// Time of the segment's first sample, on the file's clock [s].
     pub start_s: f64,
+    /// Time of the file's first sample, on the file's clock [s] (where the file's
+    /// `session_time_s` applies).
+    pub file_start_s: f64,
 }
 
 /// `dataset.json`.
@@ -142,6 +145,7 @@ impl Dataset {
                         number,
                         of: pieces.found,
                         start_s: recording.t[0],
+                        file_start_s: pieces.first_t,
                     });
                 }
                 meta.recordings.push(piece);

@@ -196,7 +196,11 @@ impl Recording {
                 ),
             });
         }
-        Ok(Pieces { found, kept })
+        Ok(Pieces {
+            found,
+            kept,
+            first_t: rec.t[0],
+        })
     }
 
     /// Write as CSV (with velocity, and torque when present).
@@ -243,6 +247,8 @@ pub(crate) struct Pieces {
     pub found: usize,
     /// `(number, segment)` of those with at least [`MIN_SAMPLES`] samples.
     pub kept: Vec<(usize, Recording)>,
+    /// Time of the file's first sample [s] (of the first segment, kept or not).
+    pub first_t: f64,
 }
 
 /// Check the sample count and the rate of the median interval; return that interval [s].

@@ -4,13 +4,20 @@
 //! The ideal reading is the wrench the tool loads the sensor with: contact forces on the
 //! probe (rapier contacts and the torso's skin) plus the tool's weight minus its inertial
 //! force, `F = F_contact + m·g - m·a`, with torques about the sensor origin. Optional
-//! realism, all off by default: a constant bias, white Gaussian noise and a first-order
-//! low-pass filter; the noise is seeded, so runs reproduce.
+//! realism, all off by default: a bias (constant, or drifting linearly in time), white
+//! Gaussian noise, a first-order low-pass filter and a transport delay; the noise is seeded, so runs reproduce.
 
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use rand_pcg::Pcg64Mcg;
 use serde::{Deserialize, Serialize};
+
+/// Weight of the new sample in the first-order low-pass at `cutoff_hz` sampled every
+/// `dt`: `y += α·(x − y)` with `α = 1 − e^(−2π·f_c·dt)`, the exact response to a signal
+/// held over the step (the sensor filter and the calibration's replay share it).
+pub fn low_pass_alpha(cutoff_hz: f64, dt: f64) -> f64 {
+    1.0 - (-2.0 * std::f64::consts::PI * cutoff_hz * dt).exp()
+}
 
 /// Sensor imperfections.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -18,6 +25,9 @@ use serde::{Deserialize, Serialize};
 pub struct FtSensorParams {
     /// Constant offset added to `[fx, fy, fz, tx, ty, tz]` [N, N·m]. Default zeros.
     pub bias: [f64; 6],
+    /// Linear change of the bias per second of sensor time, `[fx, fy, fz, tx, ty, tz]`
+    /// [N/s, N·m/s] (thermal drift). Default zeros.
+    pub bias_drift: [f64; 6],
     /// Standard deviation of force noise [N]. Default 0.
     pub force_noise: f64,
     /// Standard deviation of torque noise [N·m]. Default 0.
@@ -35,6 +45,7 @@ impl Default for FtSensorParams {
     fn default() -> Self {
         Self {
             bias: [0.0; 6],
+            bias_drift: [0.0; 6],
             force_noise: 0.0,
             torque_noise: 0.0,
             low_pass_hz: 0.0,
@@ -51,6 +62,9 @@ pub struct FtSensor {
     rng: Pcg64Mcg,
     filtered: Option<[f64; 6]>,
     history: std::collections::VecDeque<[f64; 6]>,
+    /// Time since the sensor was created [s] (drift keeps running across resets, as a
+    /// real sensor's does).
+    elapsed: f64,
 }
 
 impl FtSensor {
@@ -61,6 +75,7 @@ impl FtSensor {
             rng: Pcg64Mcg::seed_from_u64(seed),
             filtered: None,
             history: std::collections::VecDeque::new(),
+            elapsed: 0.0,
         }
     }
 
@@ -84,8 +99,9 @@ impl FtSensor {
             self.history.pop_front();
         }
         let mut out = *self.history.front().expect("just pushed");
+        self.elapsed += dt;
         for (i, v) in out.iter_mut().enumerate() {
-            *v += self.params.bias[i];
+            *v += self.params.bias[i] + self.params.bias_drift[i] * self.elapsed;
             let std = if i < 3 {
                 self.params.force_noise
             } else {
@@ -98,8 +114,7 @@ impl FtSensor {
             }
         }
         if self.params.low_pass_hz > 0.0 {
-            let tau = 1.0 / (2.0 * std::f64::consts::PI * self.params.low_pass_hz);
-            let alpha = dt / (tau + dt);
+            let alpha = low_pass_alpha(self.params.low_pass_hz, dt);
             let previous = self.filtered.unwrap_or(out);
             for i in 0..6 {
                 out[i] = previous[i] + alpha * (out[i] - previous[i]);

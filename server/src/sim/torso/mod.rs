@@ -30,5 +30,8 @@ pub use law::{LawContext, LawTerms, LinearSpringDamper, ParticleLaw};
 pub use layout::ShellLayout;
 pub use params::{SiteStiffness, TorsoParamError, TorsoParams};
 pub use skin::Skin;
-pub use tissue_laws::{MaxwellBranch, POWER_REFERENCE_DEPTH, PowerSpring, Relaxation, power_law};
+pub use tissue_laws::{
+    DepthDamping, DepthDampingLaw, MaxwellBranch, POWER_REFERENCE_DEPTH, PowerSpring, Relaxation,
+    power_law,
+};
 pub use torso::Torso;

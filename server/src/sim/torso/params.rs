@@ -67,12 +67,19 @@ pub struct TorsoParams {
     pub contact_damping: f64,
     /// Probe–skin Coulomb friction coefficient. Default 0.1 (gel-coupled skin).
     pub friction: f64,
+    /// Viscous part of the probe–skin friction [N·s/m]: a tangential force `−b·v`
+    /// opposing the probe's sliding velocity while it touches (gel films are viscous).
+    /// Default 0.
+    pub friction_viscous: f64,
     /// Exponent of the particle springs (1: linear; > 1: stiffening tissue, see
     /// [`super::PowerSpring`]). Default 1.
     pub exponent: f64,
     /// Viscoelastic relaxation: a Maxwell branch per particle ([`super::MaxwellBranch`]).
     /// Default none.
     pub relaxation: Option<super::Relaxation>,
+    /// Damping that grows with indentation (Hunt–Crossley-like,
+    /// [`super::DepthDamping`]). Default none.
+    pub depth_damping: Option<super::DepthDamping>,
     /// Tissue mass moving with the probe while in contact [kg]: the skin pushes back
     /// `−m·a` along the probe's motion. Default 0 (the particles' own mass only).
     pub moving_mass: f64,
@@ -112,6 +119,8 @@ impl Default for TorsoParams {
             contact_stiffness: 2e8,
             contact_damping: 2e5,
             friction: 0.1,
+            friction_viscous: 0.0,
+            depth_damping: None,
             exponent: 1.0,
             relaxation: None,
             moving_mass: 0.0,
@@ -211,6 +220,26 @@ impl TorsoParams {
             "in [0, 2]",
             self.friction,
         )?;
+        check(
+            "friction_viscous",
+            (0.0..=1e4).contains(&self.friction_viscous),
+            "in [0, 10000] N·s/m",
+            self.friction_viscous,
+        )?;
+        if let Some(d) = &self.depth_damping {
+            check(
+                "depth_damping.ratio_at_10mm",
+                (0.0..=100.0).contains(&d.ratio_at_10mm),
+                "in [0, 100]",
+                d.ratio_at_10mm,
+            )?;
+            check(
+                "depth_damping.exponent",
+                (0.25..=4.0).contains(&d.exponent),
+                "in [0.25, 4]",
+                d.exponent,
+            )?;
+        }
         check(
             "exponent",
             (0.5..=4.0).contains(&self.exponent),

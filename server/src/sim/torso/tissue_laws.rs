@@ -8,6 +8,9 @@
 //!   in series with a dashpot of time constant `τ` per particle: `f = −k_m·(u − x)`,
 //!   `ẋ = (u − x)/τ`. At constant depth the branch's force decays with `τ`; between pushes
 //!   `x` carries memory of the last one.
+//! - [`DepthDampingLaw`] (`depth_damping`): damping growing with indentation, as in
+//!   Hunt–Crossley contact: each particle pushed in by `d` gets extra damping
+//!   `ratio·c·(d/10 mm)^p` on top of its linear `c`.
 
 use serde::{Deserialize, Serialize};
 
@@ -99,6 +102,60 @@ impl ParticleLaw for MaxwellBranch {
         let decay = (-ctx.dt / self.tau).exp();
         for (x, u) in self.x.iter_mut().zip(ctx.u) {
             *x = u + (*x - u) * decay;
+        }
+    }
+
+    fn box_clone(&self) -> Box<dyn ParticleLaw> {
+        Box::new(self.clone())
+    }
+}
+
+/// Parameters of depth-dependent damping (see [`DepthDampingLaw`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DepthDamping {
+    /// Extra damping at 10 mm indentation relative to the linear damping.
+    pub ratio_at_10mm: f64,
+    /// Growth exponent `p` of the extra damping with depth. Default 1.
+    #[serde(default = "one")]
+    pub exponent: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// Depth-dependent damping, one term per particle (see the module docs). The depth
+/// is the particle's inward displacement at the start of the step (explicit in the
+/// depth, implicit in the velocity).
+#[derive(Debug, Clone)]
+pub struct DepthDampingLaw {
+    /// Linear damping per particle [N·s/m].
+    pub damping: Vec<f64>,
+    /// The law's parameters.
+    pub params: DepthDamping,
+}
+
+impl ParticleLaw for DepthDampingLaw {
+    fn name(&self) -> &'static str {
+        "depth_damping"
+    }
+
+    fn add_terms(&self, ctx: &LawContext<'_>, out: &mut LawTerms) {
+        let DepthDamping {
+            ratio_at_10mm,
+            exponent,
+        } = self.params;
+        for i in 0..ctx.u.len() {
+            // Pushed in: the displacement along the outward normal is negative.
+            let depth = (-ctx.u[i]).max(0.0);
+            if depth == 0.0 {
+                continue;
+            }
+            let c =
+                ratio_at_10mm * self.damping[i] * (depth / POWER_REFERENCE_DEPTH).powf(exponent);
+            out.force[i] -= c * ctx.v[i];
+            out.damping[i] += c;
         }
     }
 

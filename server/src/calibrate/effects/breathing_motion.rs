@@ -1,0 +1,381 @@
+//! `breathing_motion`: the body's surface rises and falls with breathing. Signature:
+//! per recording a sinusoid (phase, rate within ±15 % of the common rate, a linear rate
+//! change) while touching, 0.12–0.54 Hz; the amplitude from a rise profile over the top
+//! (a dome to a top rising as one). Element: the breathing law driving the torso's top
+//! (`breathing`, `edge_rise`).
+//!
+//! Specificity: breathing moves the surface, so the force oscillates where the probe
+//! holds its depth; the sinusoids must explain ≥ 25 % of the residual's variation
+//! inside steady stretches (each with its own offset), so a depth-dependent effect
+//! cannot pass for it.
+
+use super::linear::*;
+use super::{Base, Effect, Parameter, Params, ReportContext, Signature, number};
+use crate::calibrate::features::Series;
+use crate::calibrate::replay::{Model, Setup};
+use crate::sim::torso::rise_profile;
+
+const NAME: &str = "breathing_motion";
+
+/// See the module docs.
+pub struct BreathingMotion;
+
+impl Effect for BreathingMotion {
+    fn name(&self) -> &'static str {
+        NAME
+    }
+
+    fn signature(&self, series: &[Series], train: &[bool], base: Base) -> Option<Signature> {
+        signature(series, train, base)
+    }
+
+    fn apply(&self, params: &Params, model: &mut Model, _setup: &Setup) {
+        model.breathing = Some((number(params, "freq_hz"), number(params, "amplitude_m")));
+        let list = |key: &str| -> Vec<f64> {
+            params
+                .get(key)
+                .and_then(|v| v.as_array())
+                .map(|v| v.iter().map(|p| p.as_f64().unwrap_or(0.0)).collect())
+                .unwrap_or_default()
+        };
+        model.breathing_phase = list("phase_rad");
+        model.breathing_freq = list("freq_by_recording_hz");
+        model.breathing_rate_slope = list("rate_slope_by_recording_hz_s");
+        model.breathing_edge_rise = number(params, "edge_rise");
+    }
+
+    /// The centre rise and the profile (phases and rates stay the signature's).
+    fn parameters(&self, model: &Model) -> Vec<Parameter> {
+        let (_, amplitude) = model.breathing.unwrap_or((0.25, 0.0));
+        vec![
+            Parameter::linear("amplitude_m", amplitude, (0.0, 0.03, 5e-5)),
+            Parameter::linear("edge_rise", model.breathing_edge_rise, (0.0, 1.0, 0.02)),
+        ]
+    }
+
+    fn set(&self, model: &mut Model, key: &str, value: f64) {
+        match key {
+            "amplitude_m" => {
+                if let Some(b) = model.breathing.as_mut() {
+                    b.1 = value;
+                }
+            }
+            _ => model.breathing_edge_rise = value,
+        }
+    }
+
+    fn report(&self, model: &Model, _context: &ReportContext<'_>) -> serde_json::Value {
+        let (f, a) = model.breathing.unwrap_or((0.0, 0.0));
+        serde_json::json!({"freq_hz": f, "amplitude_m": a, "edge_rise": model.breathing_edge_rise})
+    }
+
+    fn sentence(&self, model: &Model, _context: &ReportContext<'_>) -> String {
+        let (f, a) = model.breathing.unwrap_or((0.0, 0.0));
+        format!(
+            "the surface moves periodically at {f:.3} Hz ({:.1} breaths/min, ≈ {:.1} mm at the centre, {:.0} % of that at the edges); added breathing driving the torso's top",
+            f * 60.0,
+            1000.0 * a,
+            100.0 * model.breathing_edge_rise
+        )
+    }
+}
+
+/// The signature fitted to the training residual (see the module docs).
+fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature> {
+    let k_eff = base.k;
+    let geometry = (base.center_xy, base.half_size);
+    let mut params = Params::new();
+    // The baseline's readjustment first, then per-recording sinusoids: breathing is
+    // not phase-locked to the recordings and its rate drifts, so each recording
+    // gets its own phase and a rate within ±15 % of the common one.
+    let (_, _, base) = fit_shared(series, train, &[0.0], base, &|_, _| Vec::new());
+    let rest: Vec<Vec<f64>> = series
+        .iter()
+        .zip(&base)
+        .map(|(s, b)| s.residual.iter().zip(b).map(|(r, b)| r - b).collect())
+        .collect();
+    let grid: Vec<f64> = (0..=140).map(|k| 0.12 + k as f64 * 0.003).collect();
+    let mut best = (f64::INFINITY, 0.0);
+    for &f in &grid {
+        let sse: f64 = series
+            .iter()
+            .zip(&rest)
+            .zip(train)
+            .filter(|(_, t)| **t)
+            .map(|((s, r), _)| breathing_fit(s, r, Chirp::steady(f, s.t[0])).0)
+            .sum();
+        if sse < best.0 {
+            best = (sse, f);
+        }
+    }
+    let f = best.1;
+    if f <= grid[0] + 1e-9 || f >= grid[grid.len() - 1] - 1e-9 {
+        return None;
+    }
+    // Each recording: its own rate (±15 % of the common one) and a rate that may
+    // change linearly across it (a drifting rate, ±12 % over the recording),
+    // refined coordinate-wise.
+    let per: Vec<(Chirp, f64, f64)> = series
+        .iter()
+        .zip(&rest)
+        .map(|(s, r)| {
+            let t_ref = s.t[0];
+            let span = (s.t[s.len() - 1] - t_ref).max(1.0);
+            let mut best = (f64::INFINITY, Chirp::steady(f, t_ref), 0.0, 0.0);
+            let consider = |best: &mut (f64, Chirp, f64, f64), chirp: Chirp| {
+                let (sse, a, c) = breathing_fit(s, r, chirp);
+                if sse < best.0 {
+                    *best = (sse, chirp, a, c);
+                }
+            };
+            for k in 0..=30 {
+                consider(
+                    &mut best,
+                    Chirp::steady(f * (0.85 + 0.01 * k as f64), t_ref),
+                );
+            }
+            for _ in 0..2 {
+                let f0 = best.1.freq;
+                for k in -6..=6 {
+                    let slope = f0 * 0.02 * k as f64 / span;
+                    consider(&mut best, Chirp::steady(f0, t_ref).with_slope(slope));
+                }
+                let slope = best.1.slope;
+                for k in -5..=5 {
+                    let freq = f0 * (1.0 + 0.004 * k as f64);
+                    consider(&mut best, Chirp::steady(freq, t_ref).with_slope(slope));
+                }
+            }
+            (best.1, best.2, best.3)
+        })
+        .collect();
+    // The rise differs across the top (a dome, or a top rising as one): each
+    // training recording's rise, fitted as a centre amplitude times the
+    // profile at where it was recorded; held-out recordings take theirs from
+    // that profile.
+    let profile = |s: &Series, edge: f64| {
+        let (centre, half) = geometry;
+        rise_profile([s.xy[0] - centre[0], s.xy[1] - centre[1]], half, edge)
+    };
+    let rises: Vec<(f64, &Series)> = per
+        .iter()
+        .zip(series)
+        .zip(train)
+        .filter(|(_, t)| **t)
+        .map(|((&(_, a, c), s), _)| (2.0 * a.hypot(c) / k_eff, s))
+        .collect();
+    // From a top rising as one down to a dome: where the sites cannot tell the
+    // profiles apart (one site, or sites equally far from the centre), the flat
+    // profile wins the tie and the stated amplitude is what was measured.
+    let mut shape = (f64::INFINITY, 1.0, 0.0);
+    for k in (0..=20).rev() {
+        let edge = k as f64 / 20.0;
+        let (rg, gg) = rises.iter().fold((0.0, 0.0), |(rg, gg), (r, s)| {
+            let g = profile(s, edge);
+            (rg + r * g, gg + g * g)
+        });
+        let centre = rg / gg.max(1e-12);
+        let sse: f64 = rises
+            .iter()
+            .map(|(r, s)| (r - centre * profile(s, edge)).powi(2))
+            .sum();
+        if sse < shape.0 * (1.0 - 1e-9) {
+            shape = (sse, edge, centre);
+        }
+    }
+    let (_, edge_rise, centre_rise) = shape;
+    let mut phases = Vec::new();
+    let mut freqs = Vec::new();
+    let mut slopes = Vec::new();
+    let predicted: Vec<Vec<f64>> = series
+        .iter()
+        .zip(&per)
+        .zip(&base)
+        .enumerate()
+        .map(|(k, ((s, &(chirp, a, c)), b))| {
+            // Held-out recordings keep only their phase and rate: the amplitude is
+            // the profile's.
+            let norm = a.hypot(c).max(1e-12);
+            let amp = 0.5 * k_eff * centre_rise * profile(s, edge_rise);
+            let (a, c) = if train[k] {
+                (a, c)
+            } else {
+                (a / norm * amp, c / norm * amp)
+            };
+            // Force ≈ k·A(1 − cos ψ)/2 with ψ = ψ₀ + φ(t), so the fitted
+            // a·sin φ + b·cos φ gives ψ₀ = atan2(a, −b); stored at the first
+            // sample, with the rate there (the chirp's reference is the first
+            // sample).
+            phases.push(a.atan2(-c) + chirp.phase(s.t[0]));
+            freqs.push(chirp.freq);
+            slopes.push(chirp.slope);
+            s.t.iter()
+                .zip(&s.contact)
+                .zip(b)
+                .map(|((&t, &on), b)| {
+                    let phase = chirp.phase(t);
+                    b + if on {
+                        a * phase.sin() + c * phase.cos()
+                    } else {
+                        0.0
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    // Specificity: breathing moves the surface, so the force oscillates where the
+    // probe holds its depth; depth-dependent effects (a nonlinear spring) leave
+    // a constant there. The sinusoids must explain part of the training
+    // residual's variation within steady stretches.
+    let explained = steady_share_explained(series, train, &rest, &predicted, &base);
+    if std::env::var("DBG_STEADY").is_ok() {
+        eprintln!("steady share {explained:?}");
+    }
+    if explained.is_some_and(|share| share < BREATHING_STEADY_SHARE) {
+        return None;
+    }
+    params.insert("freq_hz".into(), f.into());
+    params.insert("amplitude_m".into(), centre_rise.into());
+    params.insert("edge_rise".into(), edge_rise.into());
+    params.insert("phase_rad".into(), serde_json::json!(phases));
+    params.insert("freq_by_recording_hz".into(), serde_json::json!(freqs));
+    params.insert(
+        "rate_slope_by_recording_hz_s".into(),
+        serde_json::json!(slopes),
+    );
+    Some(Signature {
+        name: NAME,
+        params,
+        predicted,
+    })
+}
+
+/// Share of the residual's variation inside steady stretches that breathing must
+/// explain.
+const BREATHING_STEADY_SHARE: f64 = 0.25;
+
+/// Over the training series' steady stretches (in contact, depth held), each stretch's
+/// mean removed: the share of the residual `rest`'s variation that the oscillating part
+/// of `predicted` (minus `base`) explains; `None` without steady stretches.
+fn steady_share_explained(
+    series: &[Series],
+    train: &[bool],
+    rest: &[Vec<f64>],
+    predicted: &[Vec<f64>],
+    base: &[Vec<f64>],
+) -> Option<f64> {
+    let (mut total, mut left) = (0.0, 0.0);
+    for (k, s) in series.iter().enumerate().filter(|(k, _)| train[*k]) {
+        for range in steady_stretches(s) {
+            let r = &rest[k][range.clone()];
+            let p: Vec<f64> = range.map(|j| predicted[k][j] - base[k][j]).collect();
+            let n = r.len() as f64;
+            let (mr, mp) = (r.iter().sum::<f64>() / n, p.iter().sum::<f64>() / n);
+            for (a, b) in r.iter().zip(&p) {
+                total += (a - mr).powi(2);
+                left += ((a - mr) - (b - mp)).powi(2);
+            }
+        }
+    }
+    (total > 0.0).then(|| 1.0 - left / total)
+}
+
+/// Breathing oscillation `a·sin φ + b·cos φ` (φ the chirp's phase) for one series: (SSE,
+/// a, b). Fitted where the probe holds its depth (each steady stretch with its own offset), so that
+/// depth-dependent effects (a nonlinear spring, relaxation's level) cannot inflate it;
+/// over all in-contact samples when the series has under 2 s of steady stretches (a
+/// chirp).
+fn breathing_fit(s: &Series, residual: &[f64], chirp: Chirp) -> (f64, f64, f64) {
+    let stretches = steady_stretches(s);
+    let steady_s: f64 = stretches
+        .iter()
+        .map(|r| s.t[r.end - 1] - s.t[r.start])
+        .sum();
+    if steady_s < 2.0 {
+        let (sse, a, b, _) = sinusoid_fit(s, residual, chirp);
+        return (sse, a, b);
+    }
+    let n = s.len();
+    let mut rows = vec![false; n];
+    let mut columns = vec![vec![0.0; n], vec![0.0; n]];
+    for r in &stretches {
+        let mut offset = vec![0.0; n];
+        for i in r.clone() {
+            rows[i] = true;
+            let phase = chirp.phase(s.t[i]);
+            columns[0][i] = phase.sin();
+            columns[1][i] = phase.cos();
+            offset[i] = 1.0;
+        }
+        columns.push(offset);
+    }
+    let beta = least_squares(&columns, residual, &rows);
+    let sse = (0..n)
+        .filter(|&i| rows[i])
+        .map(|i| {
+            let fit: f64 = columns.iter().zip(&beta).map(|(c, b)| c[i] * b).sum();
+            (residual[i] - fit).powi(2)
+        })
+        .sum();
+    (sse, beta[0], beta[1])
+}
+
+/// A breathing oscillation whose rate changes linearly: rate `freq + slope·(t − t_ref)`.
+#[derive(Debug, Clone, Copy)]
+struct Chirp {
+    /// Rate at `t_ref` [Hz].
+    freq: f64,
+    /// Rate change [Hz/s].
+    slope: f64,
+    /// Reference time [s].
+    t_ref: f64,
+}
+
+impl Chirp {
+    /// A constant rate.
+    fn steady(freq: f64, t_ref: f64) -> Self {
+        Self {
+            freq,
+            slope: 0.0,
+            t_ref,
+        }
+    }
+
+    /// The same with rate change `slope` [Hz/s].
+    fn with_slope(self, slope: f64) -> Self {
+        Self { slope, ..self }
+    }
+
+    /// Phase at `t` [rad] (0 at `t_ref`).
+    fn phase(&self, t: f64) -> f64 {
+        let tau = t - self.t_ref;
+        std::f64::consts::TAU * (self.freq * tau + 0.5 * self.slope * tau * tau)
+    }
+}
+
+/// Fit `a·sin φ + b·cos φ` (φ the chirp's phase) to the in-contact part of `residual`
+/// (one series): (SSE, a, b, prediction).
+fn sinusoid_fit(s: &Series, residual: &[f64], chirp: Chirp) -> (f64, f64, f64, Vec<f64>) {
+    let mask = contact_mask(s);
+    let sin: Vec<f64> =
+        s.t.iter()
+            .zip(&mask)
+            .map(|(&t, m)| m * chirp.phase(t).sin())
+            .collect();
+    let cos: Vec<f64> =
+        s.t.iter()
+            .zip(&mask)
+            .map(|(&t, m)| m * chirp.phase(t).cos())
+            .collect();
+    let rows = vec![true; s.len()];
+    let beta = least_squares(&[sin.clone(), cos.clone()], residual, &rows);
+    let pred: Vec<f64> = (0..s.len())
+        .map(|i| beta[0] * sin[i] + beta[1] * cos[i])
+        .collect();
+    let sse = residual
+        .iter()
+        .zip(&pred)
+        .map(|(r, p)| (r - p).powi(2))
+        .sum();
+    (sse, beta[0], beta[1], pred)
+}

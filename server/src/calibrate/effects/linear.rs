@@ -1,0 +1,313 @@
+//! Linear signature fitting shared by the catalogue: least squares over stacked
+//! recordings, the baseline's readjustment columns every signature is fitted with, and
+//! the masks and grids signatures are built from.
+
+use super::Base;
+use crate::calibrate::features::Series;
+use rapier3d::na::{DMatrix, DVector};
+
+/// Least squares `X·β ≈ y` over the rows where `use_row`, by SVD of the column-scaled
+/// design (signature columns can be nearly collinear with the readjustment's; normal
+/// equations would square their condition number). Singular values below 1e-10 of the
+/// largest are dropped (the minimum-norm solution along them).
+pub(super) fn least_squares(columns: &[Vec<f64>], y: &[f64], use_row: &[bool]) -> Vec<f64> {
+    let p = columns.len();
+    let rows: Vec<usize> = (0..y.len()).filter(|&i| use_row[i]).collect();
+    if p == 0 || rows.is_empty() {
+        return vec![0.0; p];
+    }
+    let scale: Vec<f64> = columns
+        .iter()
+        .map(|c| {
+            let norm = rows.iter().map(|&i| c[i] * c[i]).sum::<f64>().sqrt();
+            if norm > 0.0 { 1.0 / norm } else { 0.0 }
+        })
+        .collect();
+    let a = DMatrix::from_fn(rows.len(), p, |r, j| columns[j][rows[r]] * scale[j]);
+    let b = DVector::from_iterator(rows.len(), rows.iter().map(|&i| y[i]));
+    let svd = a.svd(true, true);
+    let largest = svd.singular_values.max();
+    match svd.solve(&b, 1e-10 * largest.max(1e-300)) {
+        Ok(beta) => beta.iter().zip(&scale).map(|(b, s)| b * s).collect(),
+        Err(_) => vec![0.0; p],
+    }
+}
+/// Columns for one series given the grid parameter.
+pub(super) type Columns<'a> = dyn Fn(&Series, f64) -> Vec<Vec<f64>> + 'a;
+
+/// The baseline's own degrees of freedom, linearised: contact stiffness, surface offset
+/// and damping changes. Every signature is fitted together with them, so an effect's
+/// evidence is measured against a re-balanced baseline (a missing effect otherwise
+/// leaves the baseline's fitted values distorted, which other signatures would "explain").
+///
+/// The surface is readjusted as a whole, as the baseline fits it: the sites' heights are
+/// measured at contact onset (see `onset`), not free.
+pub fn readjust_columns(s: &Series, base: Base, damping: bool) -> Vec<Vec<f64>> {
+    let k_eff = base.k;
+    let c = contact_mask(s);
+    let mut columns = vec![
+        positive_depth(s).iter().map(|d| k_eff * d).collect(),
+        c.iter().map(|c| k_eff * c).collect(),
+    ];
+    if damping {
+        columns.push(s.vz.iter().zip(&c).map(|(v, c)| -v * c).collect());
+    }
+    columns
+}
+
+/// Fit shared coefficients on the training series for each grid value; keep the best.
+/// The baseline's readjustment columns are appended to the candidate's.
+pub(super) fn fit_shared(
+    series: &[Series],
+    train: &[bool],
+    grid: &[f64],
+    base: Base,
+    candidate: &Columns<'_>,
+) -> (f64, Vec<f64>, Vec<Vec<f64>>) {
+    fit_with(series, train, grid, base, true, candidate)
+}
+
+/// [`fit_shared`], choosing whether the damping readjustment is free (a sensor delay
+/// looks like negative damping at low frequencies: its fit must not trade against it).
+pub(super) fn fit_with(
+    series: &[Series],
+    train: &[bool],
+    grid: &[f64],
+    base: Base,
+    damping: bool,
+    candidate: &Columns<'_>,
+) -> (f64, Vec<f64>, Vec<Vec<f64>>) {
+    let level: Vec<Vec<f64>> = series.iter().map(|s| level_column(s, base)).collect();
+    let targets: Vec<Vec<f64>> = series.iter().map(|s| s.residual.clone()).collect();
+    let mut best: Option<(f64, Solved)> = None;
+    for &g in grid {
+        let cols: Vec<Vec<Vec<f64>>> = series
+            .iter()
+            .map(|s| {
+                let mut c = candidate(s, g);
+                c.extend(readjust_columns(s, base, damping));
+                c
+            })
+            .collect();
+        let bound = damping.then(|| (cols[0].len() - 1, base.c));
+        let solved = solve(&targets, &cols, &level, train, bound);
+        if best.as_ref().is_none_or(|b| solved.sse < b.1.sse) {
+            best = Some((g, solved));
+        }
+    }
+    let (g, solved) = best.expect("a grid value");
+    (g, solved.beta, solved.predicted)
+}
+
+/// A recording's own surface level, linearised: `k` where touching. The baseline fits
+/// each recording's height (a probe placed again lands where the curved body stands a
+/// little higher or lower); a missing effect distorts those heights differently per
+/// recording, so every signature readjusts them too: on training recordings with the
+/// signature, on held-out ones afterwards from their own residual (a nuisance state,
+/// as the baseline fits their heights).
+fn level_column(s: &Series, base: Base) -> Vec<f64> {
+    contact_mask(s).iter().map(|c| base.k * c).collect()
+}
+
+/// One linear solve.
+struct Solved {
+    /// Training SSE.
+    sse: f64,
+    /// Coefficients of the shared columns.
+    beta: Vec<f64>,
+    /// Prediction of every series' target.
+    predicted: Vec<Vec<f64>>,
+}
+
+/// Least squares of `targets ≈ cols·β + level·a_k` on the training series, `a_k` one
+/// level per training series; each held-out series' level fitted afterwards on its own
+/// target minus the shared prediction. `damping`: the shared column that is the
+/// damping readjustment and the largest decrease allowed (refitted without it when the
+/// bound is hit).
+fn solve(
+    targets: &[Vec<f64>],
+    cols: &[Vec<Vec<f64>>],
+    level: &[Vec<f64>],
+    train: &[bool],
+    damping: Option<(usize, f64)>,
+) -> Solved {
+    let p = cols.first().map_or(0, |c| c.len());
+    let trained: Vec<usize> = (0..targets.len()).filter(|&k| train[k]).collect();
+    let rows: usize = trained.iter().map(|&k| targets[k].len()).sum();
+    let mut stacked = vec![Vec::with_capacity(rows); p + trained.len()];
+    let mut y = Vec::with_capacity(rows);
+    for (position, &k) in trained.iter().enumerate() {
+        for (j, c) in cols[k].iter().enumerate() {
+            stacked[j].extend_from_slice(c);
+        }
+        for (j, column) in stacked[p..].iter_mut().enumerate() {
+            if j == position {
+                column.extend_from_slice(&level[k]);
+            } else {
+                column.extend(std::iter::repeat_n(0.0, targets[k].len()));
+            }
+        }
+        y.extend_from_slice(&targets[k]);
+    }
+    let all_rows = vec![true; y.len()];
+    let mut beta = least_squares(&stacked, &y, &all_rows);
+    if let Some((j, min)) = damping
+        && beta[j] < -min
+    {
+        stacked[j].iter_mut().for_each(|v| *v = 0.0);
+        beta = least_squares(&stacked, &y, &all_rows);
+    }
+    let sse: f64 = (0..y.len())
+        .map(|i| {
+            let fit: f64 = stacked.iter().zip(&beta).map(|(c, b)| b * c[i]).sum();
+            (y[i] - fit).powi(2)
+        })
+        .sum();
+    let predicted = (0..targets.len())
+        .map(|k| {
+            let shared: Vec<f64> = (0..targets[k].len())
+                .map(|i| cols[k].iter().zip(&beta).map(|(c, b)| b * c[i]).sum())
+                .collect();
+            let a = match trained.iter().position(|&t| t == k) {
+                Some(position) => beta[p + position],
+                None => {
+                    let (num, den) = level[k]
+                        .iter()
+                        .zip(&targets[k])
+                        .zip(&shared)
+                        .fold((0.0, 0.0), |(n, d), ((l, t), s)| {
+                            (n + l * (t - s), d + l * l)
+                        });
+                    if den > 0.0 { num / den } else { 0.0 }
+                }
+            };
+            shared
+                .iter()
+                .zip(&level[k])
+                .map(|(s, l)| s + a * l)
+                .collect()
+        })
+        .collect();
+    beta.truncate(p);
+    Solved {
+        sse,
+        beta,
+        predicted,
+    }
+}
+
+pub(super) fn contact_mask(s: &Series) -> Vec<f64> {
+    s.contact.iter().map(|&c| f64::from(u8::from(c))).collect()
+}
+
+/// Depth below the fitted surface where touching, else 0 [m].
+pub(super) fn positive_depth(s: &Series) -> Vec<f64> {
+    s.depth
+        .iter()
+        .zip(&s.contact)
+        .map(|(d, &c)| if c { d.max(0.0) } else { 0.0 })
+        .collect()
+}
+
+pub(super) fn log_grid(lo: f64, hi: f64, n: usize) -> Vec<f64> {
+    (0..n)
+        .map(|k| lo * (hi / lo).powf(k as f64 / (n - 1) as f64))
+        .collect()
+}
+
+/// The baseline's readjustment alone (no effect), fitted on the training series: the
+/// reference every candidate is compared with.
+pub fn readjusted(series: &[Series], train: &[bool], base: Base) -> Vec<Vec<f64>> {
+    fit_shared(series, train, &[0.0], base, &|_, _| Vec::new()).2
+}
+
+/// Fit effect `name`'s signature to the residuals (`k_eff`: the baseline's contact
+/// A steady stretch: in contact, `|v_z|` below this [m/s] ...
+const STEADY_SPEED: f64 = 0.001;
+/// ... for at least this long [s].
+const STEADY_MIN_S: f64 = 1.0;
+
+/// Steady stretches of a series (in contact, depth held ≥ `STEADY_MIN_S`), as index
+/// ranges.
+pub(super) fn steady_stretches(s: &Series) -> Vec<std::ops::Range<usize>> {
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < s.len() {
+        if !(s.contact[i] && s.vz[i].abs() < STEADY_SPEED) {
+            i += 1;
+            continue;
+        }
+        let start = i;
+        while i < s.len() && s.contact[i] && s.vz[i].abs() < STEADY_SPEED {
+            i += 1;
+        }
+        if s.t[i - 1] - s.t[start] >= STEADY_MIN_S {
+            out.push(start..i);
+        }
+    }
+    out
+}
+
+/// A sensor stage applied to a signal on a series' time base, at a grid value.
+pub(super) type Stage = dyn Fn(&Series, &[f64], f64) -> Vec<f64> + Sync;
+
+/// A sensor-stage signature: the sensor transform `stage(s, x, g)` (grid value `g`) of
+/// a signal `x` on the series' time base. The stage acts on everything the body pushes
+/// with, so the residual is linearised as `stage(F_b + R·β) − F_b = (stage(F_b) − F_b) +
+/// stage(R)·β`, `R` the baseline's readjustment columns: a baseline whose damping
+/// absorbed a lag is re-balanced *through* the sensor, not beside it (with the columns
+/// unfiltered, a 4.8 Hz filter on a soft, well-damped body fitted worse than nothing).
+/// No free gain: the grid value whose training SSE is least, and the prediction at it.
+pub(super) fn fit_sensor_stage(
+    series: &[Series],
+    train: &[bool],
+    base: Base,
+    grid: &[f64],
+    stage: &Stage,
+) -> (f64, Vec<Vec<f64>>) {
+    let mut best: Option<(f64, Solved, Vec<Vec<f64>>)> = None;
+    for &g in grid {
+        let shapes: Vec<Vec<f64>> = series
+            .iter()
+            .map(|s| {
+                let staged = stage(s, &s.predicted, g);
+                staged
+                    .iter()
+                    .zip(&s.predicted)
+                    .map(|(a, b)| a - b)
+                    .collect()
+            })
+            .collect();
+        let cols: Vec<Vec<Vec<f64>>> = series
+            .iter()
+            .map(|s| {
+                readjust_columns(s, base, true)
+                    .iter()
+                    .map(|c| stage(s, c, g))
+                    .collect()
+            })
+            .collect();
+        let level: Vec<Vec<f64>> = series
+            .iter()
+            .map(|s| stage(s, &level_column(s, base), g))
+            .collect();
+        let targets: Vec<Vec<f64>> = series
+            .iter()
+            .zip(&shapes)
+            .map(|(s, l)| s.residual.iter().zip(l).map(|(r, l)| r - l).collect())
+            .collect();
+        let bound = Some((cols[0].len() - 1, base.c));
+        let solved = solve(&targets, &cols, &level, train, bound);
+        if best.as_ref().is_none_or(|b| solved.sse < b.1.sse) {
+            best = Some((g, solved, shapes));
+        }
+    }
+    let (g, solved, shapes) = best.expect("a grid value");
+    let predicted = solved
+        .predicted
+        .iter()
+        .zip(&shapes)
+        .map(|(p, l)| p.iter().zip(l).map(|(p, l)| p + l).collect())
+        .collect();
+    (g, predicted)
+}

@@ -1,0 +1,188 @@
+//! The catalogue of physics the baseline leaves out, one file per effect. Each effect
+//! ([`Effect`]) knows its **signature** (a linearised model of what it adds to the
+//! force, fitted to the baseline's residual), the simulator element it becomes, that
+//! element's parameters for the output-error refit, and how it is reported.
+//!
+//! | effect | signature in the residual `r = F_measured − F_baseline` | simulator element |
+//! |---|---|---|
+//! | `sensor_bias` | a constant, also in free air | sensor bias (`ft_sensor.bias`) |
+//! | `sensor_delay` | `F(t − τ) − F(t)`: residual follows `−τ·dF/dt` | sensor delay stage (`ft_sensor.delay_s`) |
+//! | `sensor_filter` | `LP(F) − F`, first order: lags and attenuates fast changes | sensor low-pass (`ft_sensor.low_pass_hz`) |
+//! | `bias_drift` | `b₀ + Δ·(t_session − t₀)/T`, also in free air | drifting sensor bias (`ft_sensor.bias_drift`) |
+//! | `tissue_inertia` | `−m·a_z` while touching | moving mass (`torso.moving_mass`) |
+//! | `nonlinear_stiffness` | `k·(δ₀(δ/δ₀)ⁿ − δ)` plus a stiffness change, in contact | power spring (`torso.exponent`) |
+//! | `viscoelastic_relaxation` | `k_m·(δ − x)`, `ẋ = (δ − x)/τ`: relaxes during holds, memory between pushes | Maxwell branch (`torso.relaxation`) |
+//! | `depth_dependent_damping` | `−r·c·(δ/10 mm)^p·v_z` in contact | depth-dependent damping law (`torso.depth_damping`) |
+//! | `breathing_motion` | `k·a·sin φ(t)` while touching, 0.1–0.6 Hz; per recording a phase, a rate and a linear rate change; `a` from a rise profile over the top | breathing law (`breathing`, `edge_rise`) |
+//! | `site_heterogeneity` | `(s_site − 1)·F` per site | local stiffness (`torso.stiffness_sites`) |
+//! | `sliding_friction` | in `fx, fy`: `−(μ·F_n·v̂ + b·v)` while sliding in contact | skin friction (`torso.friction`, `torso.friction_viscous`) |
+//!
+//! A signature is fitted by linear least squares on the **training** recordings (one
+//! nonlinear parameter by grid search); its evidence is the RMSE reduction it brings on
+//! the **validation** recordings, never the training fit (BIC over-selects on tens of
+//! thousands of autocorrelated samples).
+//!
+//! Adding an effect: one file here implementing [`Effect`], one line in [`CATALOGUE`],
+//! and the simulator element it sets (a torso law or a sensor stage) where the
+//! simulator lacks one.
+
+mod bias_drift;
+mod breathing_motion;
+mod depth_dependent_damping;
+mod linear;
+mod nonlinear_stiffness;
+mod sensor_bias;
+mod sensor_delay;
+mod sensor_filter;
+mod site_heterogeneity;
+mod sliding_friction;
+mod tissue_inertia;
+mod viscoelastic_relaxation;
+
+pub use linear::{readjust_columns, readjusted};
+
+use super::replay::{Model, Setup};
+
+/// The catalogue, in the order signatures are tried.
+pub static CATALOGUE: [&dyn Effect; 11] = [
+    &sensor_bias::SensorBias,
+    &sensor_delay::SensorDelay,
+    &sensor_filter::SensorFilter,
+    &bias_drift::BiasDrift,
+    &tissue_inertia::TissueInertia,
+    &nonlinear_stiffness::NonlinearStiffness,
+    &viscoelastic_relaxation::ViscoelasticRelaxation,
+    &depth_dependent_damping::DepthDependentDamping,
+    &breathing_motion::BreathingMotion,
+    &site_heterogeneity::SiteHeterogeneity,
+    &sliding_friction::SlidingFriction,
+];
+
+/// The catalogue entry called `name`.
+pub fn named(name: &str) -> Option<&'static dyn Effect> {
+    CATALOGUE.iter().copied().find(|e| e.name() == name)
+}
+
+/// Parameters of a fitted signature, by catalogue key.
+pub type Params = serde_json::Map<String, serde_json::Value>;
+
+/// A number from `params` (0 when absent).
+pub fn number(params: &Params, key: &str) -> f64 {
+    params.get(key).and_then(|v| v.as_f64()).unwrap_or(0.0)
+}
+
+/// One simulator parameter the output-error refit moves.
+#[derive(Debug, Clone)]
+pub struct Parameter {
+    /// Key under the effect's name (`<effect>.<key>` in reports).
+    pub key: String,
+    /// Current value, in natural units.
+    pub value: f64,
+    /// Lower and upper bound and the finite-difference step (in the fitted scale).
+    pub range: (f64, f64, f64),
+    /// Fitted as its logarithm (bounds and step are then in log units): time constants
+    /// and cut-offs spanning decades.
+    pub log: bool,
+}
+
+impl Parameter {
+    /// A parameter fitted as is.
+    pub fn linear(key: &str, value: f64, range: (f64, f64, f64)) -> Self {
+        Self {
+            key: key.to_owned(),
+            value,
+            range,
+            log: false,
+        }
+    }
+
+    /// A parameter fitted as its logarithm, bounded to `[lo, hi]` (natural units).
+    pub fn logarithmic(key: &str, value: f64, lo: f64, hi: f64, step: f64) -> Self {
+        Self {
+            key: key.to_owned(),
+            value,
+            range: (lo.ln(), hi.ln(), step),
+            log: true,
+        }
+    }
+}
+
+/// What the report needs beyond the model.
+pub struct ReportContext<'a> {
+    /// Static contact stiffness at each site under the calibrated model [N/m].
+    pub site_stiffness: &'a [(String, f64)],
+    /// The session's span on its common clock [s] (first sample to last).
+    pub session_span_s: f64,
+}
+
+/// One catalogue effect.
+pub trait Effect: Sync {
+    /// Catalogue name.
+    fn name(&self) -> &'static str;
+
+    /// Where its signature shows.
+    fn channel(&self) -> Channel {
+        Channel::Normal
+    }
+
+    /// A catalogue effect this one contains as a special case (a drifting bias
+    /// contains a constant one): chosen over it only with clearly more evidence, and
+    /// named instead of it when both are found.
+    fn contains(&self) -> Option<&'static str> {
+        None
+    }
+
+    /// The signature fitted to the training residual, with the baseline's
+    /// readjustment; `None` when absent (wrong sign, too small, or failing the effect's
+    /// specificity test).
+    fn signature(&self, series: &[Series], train: &[bool], base: Base) -> Option<Signature>;
+
+    /// What the residual looks like without the effect, in its channel (the reference
+    /// its signature is compared with): the baseline's readjustment by default.
+    fn null(&self, series: &[Series], train: &[bool], base: Base) -> Vec<Vec<f64>> {
+        readjusted(series, train, base)
+    }
+
+    /// Put the simulator element into `model`, from the signature's parameters.
+    fn apply(&self, params: &Params, model: &mut Model, setup: &Setup);
+
+    /// The element's parameters for the refit, read from `model`.
+    fn parameters(&self, model: &Model) -> Vec<Parameter>;
+
+    /// Write a refitted parameter (natural units) back into `model`.
+    fn set(&self, model: &mut Model, key: &str, value: f64);
+
+    /// The calibrated parameters under their catalogue keys.
+    fn report(&self, model: &Model, context: &ReportContext<'_>) -> serde_json::Value;
+
+    /// One sentence: what was found and what the simulator gained.
+    fn sentence(&self, model: &Model, context: &ReportContext<'_>) -> String;
+}
+
+pub use super::features::Channel;
+use super::features::Series;
+
+/// The baseline's contact stiffness and damping, to scale signatures and bound the
+/// readjustment.
+#[derive(Debug, Clone, Copy)]
+pub struct Base {
+    /// Contact stiffness [N/m].
+    pub k: f64,
+    /// Contact damping [N·s/m].
+    pub c: f64,
+    /// Torso centre, world xy [m] (for breathing's rise profile).
+    pub center_xy: [f64; 2],
+    /// Torso half-extents in x and y [m].
+    pub half_size: [f64; 2],
+}
+
+/// A fitted signature.
+#[derive(Debug, Clone)]
+pub struct Signature {
+    /// Effect name.
+    pub name: &'static str,
+    /// Fitted parameters (catalogue keys).
+    pub params: Params,
+    /// Predicted residual per series (every recording), in the effect's channel.
+    pub predicted: Vec<Vec<f64>>,
+}

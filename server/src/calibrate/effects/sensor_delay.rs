@@ -1,0 +1,72 @@
+//! `sensor_delay`: the force reading lags the motion (transport delay of the sensor's
+//! electronics or bus). Signature: `F(t − τ) − F(t)` with unit gain. Element: the
+//! sensor's delay stage (`ft_sensor.delay_s`).
+
+use super::linear::*;
+use super::{Base, Effect, Parameter, Params, ReportContext, Signature, number};
+use crate::calibrate::features::Series;
+use crate::calibrate::replay::{Model, Setup};
+
+const NAME: &str = "sensor_delay";
+
+/// See the module docs.
+pub struct SensorDelay;
+
+impl Effect for SensorDelay {
+    fn name(&self) -> &'static str {
+        NAME
+    }
+
+    fn signature(&self, series: &[Series], train: &[bool], base: Base) -> Option<Signature> {
+        signature(series, train, base)
+    }
+
+    fn apply(&self, params: &Params, model: &mut Model, _setup: &Setup) {
+        model.delay = number(params, "delay_s");
+    }
+
+    fn parameters(&self, model: &Model) -> Vec<Parameter> {
+        vec![Parameter::linear("delay_s", model.delay, (0.0, 0.5, 0.002))]
+    }
+
+    fn set(&self, model: &mut Model, _key: &str, value: f64) {
+        model.delay = value;
+    }
+
+    fn report(&self, model: &Model, _context: &ReportContext<'_>) -> serde_json::Value {
+        serde_json::json!({"delay_s": model.delay})
+    }
+
+    fn sentence(&self, model: &Model, _context: &ReportContext<'_>) -> String {
+        format!(
+            "the force lags the motion by ≈ {:.0} ms; added a sensor delay stage",
+            1000.0 * model.delay
+        )
+    }
+}
+
+/// The signature fitted to the training residual: `F(t − τ) − F(t)`, τ on a 2.5 ms grid
+/// up to 100 ms.
+fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature> {
+    let grid: Vec<f64> = (1..=40).map(|k| k as f64 * 0.0025).collect();
+    let (tau, predicted) = fit_sensor_stage(series, train, base, &grid, &delayed);
+    let mut params = Params::new();
+    params.insert("delay_s".into(), tau.into());
+    Some(Signature {
+        name: NAME,
+        params,
+        predicted,
+    })
+}
+
+/// `x` delayed by `tau` (linear interpolation; the first sample held before it).
+fn delayed(s: &Series, x: &[f64], tau: f64) -> Vec<f64> {
+    (0..s.len())
+        .map(|i| {
+            let t = s.t[i] - tau;
+            let k = s.t.partition_point(|&x| x <= t).clamp(1, s.len() - 1);
+            let w = ((t - s.t[k - 1]) / (s.t[k] - s.t[k - 1])).clamp(0.0, 1.0);
+            x[k - 1] + w * (x[k] - x[k - 1])
+        })
+        .collect()
+}
