@@ -74,7 +74,8 @@ enum CalibrateCommand {
     Synth {
         /// Effect to conceal (repeatable): nonlinear_stiffness, viscoelastic_relaxation,
         /// breathing_motion, tissue_inertia, sensor_bias, sensor_delay,
-        /// site_heterogeneity. None: a dataset without hidden effects.
+        /// site_heterogeneity, sliding_friction, sensor_filter, bias_drift,
+        /// depth_dependent_damping. None: a dataset without hidden effects.
         #[arg(long = "effect")]
         effects: Vec<String>,
         /// Generator seed.

@@ -36,6 +36,9 @@ pub struct Accepted {
     /// Relative validation RMSE reduction of its signature.
     #[serde(skip)]
     pub gain: f64,
+    /// The baseline's readjustment fitted with its signature.
+    #[serde(skip)]
+    pub readjust: effects::Readjust,
 }
 
 /// A candidate not accepted.

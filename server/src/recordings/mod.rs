@@ -6,7 +6,7 @@
 //! dataset.json  {"format": "echogym-recordings/1", "description": "...",
 //!                "nominal_surface_z": m, "torso_center_xy": [m, m],
 //!                "recordings": [{"file": "center_press.csv", "site": "center",
-//!                                "protocol": "press"}, ...],
+//!                                "protocol": "press", "session_time_s": s?}, ...],
 //!                "torso": {...}?, "notes": "..."?}      (unknown keys are kept)
 //! <file>.csv    t,px,py,pz,fx,fy,fz[,vx,vy,vz][,tx,ty,tz]
 //!               t in s (strictly increasing, jitter allowed, median rate 50–2000 Hz,
@@ -14,6 +14,11 @@
 //!               f in N (force the body exerts on the probe: pressing down reads fz > 0),
 //!               v in m/s (derived when absent), t* in N·m
 //! ```
+//! Recordings are listed in the order they were recorded. `session_time_s` (optional) is
+//! the time of the file's first sample on a clock common to the session; without it the
+//! recordings are taken as made back to back (see `calibrate::session`: a drifting
+//! sensor bias is measured on this clock).
+//!
 //! Reading validates everything and names the file and row of the first problem (NaN or
 //! infinite values, time not strictly increasing) or the file (median rate outside
 //! 50–2000 Hz, fewer than [`MIN_SAMPLES`] samples). Real robot logs drop messages: an

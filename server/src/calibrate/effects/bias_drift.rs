@@ -7,7 +7,7 @@
 //! and named instead of it when both are found.
 
 use super::linear::*;
-use super::{Base, Effect, Parameter, Params, ReportContext, Signature, number};
+use super::{Base, Effect, Parameter, Params, Readjust, ReportContext, Signature, number};
 use crate::calibrate::features::Series;
 use crate::calibrate::replay::{Model, Setup};
 
@@ -36,6 +36,7 @@ impl Effect for BiasDrift {
             name: NAME,
             params,
             predicted,
+            readjust: Readjust::from_tail(&beta),
         })
     }
 

@@ -10,7 +10,7 @@
 //! cannot pass for it.
 
 use super::linear::*;
-use super::{Base, Effect, Parameter, Params, ReportContext, Signature, number};
+use super::{Base, Effect, Parameter, Params, Readjust, ReportContext, Signature, number};
 use crate::calibrate::features::Series;
 use crate::calibrate::replay::{Model, Setup};
 use crate::sim::torso::rise_profile;
@@ -88,7 +88,8 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
     // The baseline's readjustment first, then per-recording sinusoids: breathing is
     // not phase-locked to the recordings and its rate drifts, so each recording
     // gets its own phase and a rate within ±15 % of the common one.
-    let (_, _, base) = fit_shared(series, train, &[0.0], base, &|_, _| Vec::new());
+    let (_, beta, base) = fit_shared(series, train, &[0.0], base, &|_, _| Vec::new());
+    let readjust = Readjust::from_tail(&beta);
     let rest: Vec<Vec<f64>> = series
         .iter()
         .zip(&base)
@@ -247,6 +248,7 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
         name: NAME,
         params,
         predicted,
+        readjust: readjust,
     })
 }
 

@@ -5,7 +5,7 @@
 //! depth-dependent damping law on every particle (`torso.depth_damping`).
 
 use super::linear::*;
-use super::{Base, Effect, Parameter, Params, ReportContext, Signature, number};
+use super::{Base, Effect, Parameter, Params, Readjust, ReportContext, Signature, number};
 use crate::calibrate::features::Series;
 use crate::calibrate::replay::{Model, Setup};
 use crate::sim::torso::{DepthDamping, POWER_REFERENCE_DEPTH};
@@ -44,6 +44,7 @@ impl Effect for DepthDependentDamping {
             name: NAME,
             params,
             predicted,
+            readjust: Readjust::from_tail(&beta),
         })
     }
 

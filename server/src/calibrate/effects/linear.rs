@@ -2,7 +2,7 @@
 //! recordings, the baseline's readjustment columns every signature is fitted with, and
 //! the masks and grids signatures are built from.
 
-use super::Base;
+use super::{Base, Readjust};
 use crate::calibrate::features::Series;
 use rapier3d::na::{DMatrix, DVector};
 
@@ -264,7 +264,7 @@ pub(super) fn fit_sensor_stage(
     base: Base,
     grid: &[f64],
     stage: &Stage,
-) -> (f64, Vec<Vec<f64>>) {
+) -> (f64, Vec<Vec<f64>>, Readjust) {
     let mut best: Option<(f64, Solved, Vec<Vec<f64>>)> = None;
     for &g in grid {
         let shapes: Vec<Vec<f64>> = series
@@ -309,5 +309,5 @@ pub(super) fn fit_sensor_stage(
         .zip(&shapes)
         .map(|(p, l)| p.iter().zip(l).map(|(p, l)| p + l).collect())
         .collect();
-    (g, predicted)
+    (g, predicted, Readjust::from_tail(&solved.beta))
 }

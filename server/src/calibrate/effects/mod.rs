@@ -176,6 +176,33 @@ pub struct Base {
     pub half_size: [f64; 2],
 }
 
+/// The baseline's readjustment a signature was fitted with: where the linearisation
+/// puts the baseline once the effect is in (the refit starts there).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Readjust {
+    /// Relative change of the contact stiffness.
+    pub stiffness: f64,
+    /// Change of the surface height [m].
+    pub offset_m: f64,
+    /// Change of the contact damping [N·s/m].
+    pub damping: f64,
+}
+
+impl Readjust {
+    /// From the coefficients of a fit whose last three columns are the readjustment's
+    /// (stiffness, offset, damping; see [`readjust_columns`]).
+    pub fn from_tail(beta: &[f64]) -> Self {
+        match beta {
+            [.., k, h, c] => Self {
+                stiffness: *k,
+                offset_m: *h,
+                damping: *c,
+            },
+            _ => Self::default(),
+        }
+    }
+}
+
 /// A fitted signature.
 #[derive(Debug, Clone)]
 pub struct Signature {
@@ -185,4 +212,6 @@ pub struct Signature {
     pub params: Params,
     /// Predicted residual per series (every recording), in the effect's channel.
     pub predicted: Vec<Vec<f64>>,
+    /// The baseline's readjustment fitted with it.
+    pub readjust: Readjust,
 }

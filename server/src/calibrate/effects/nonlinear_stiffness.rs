@@ -3,7 +3,7 @@
 //! Element: power-law particle springs (`torso.exponent`).
 
 use super::linear::*;
-use super::{Base, Effect, Parameter, Params, ReportContext, Signature, number};
+use super::{Base, Effect, Parameter, Params, Readjust, ReportContext, Signature, number};
 use crate::calibrate::features::Series;
 use crate::calibrate::replay::{Model, Setup};
 
@@ -57,7 +57,7 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
     let k_eff = base.k;
     let mut params = Params::new();
     let grid: Vec<f64> = (0..=40).map(|k| 0.6 + k as f64 * 0.05).collect();
-    let (n, _, predicted) = fit_shared(series, train, &grid, base, &|s, n| {
+    let (n, beta, predicted) = fit_shared(series, train, &grid, base, &|s, n| {
         let d = positive_depth(s);
         let power = d
             .iter()
@@ -70,9 +70,14 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
         ]
     });
     params.insert("exponent".into(), n.into());
+    // Its own stiffness and level columns are the readjustment's too.
+    let mut readjust = Readjust::from_tail(&beta);
+    readjust.stiffness += beta[1];
+    readjust.offset_m += beta[2] / k_eff;
     Some(Signature {
         name: NAME,
         params,
         predicted,
+        readjust: readjust,
     })
 }

@@ -3,7 +3,7 @@
 //! Element: the sensor's bias (`ft_sensor.bias`).
 
 use super::linear::*;
-use super::{Base, Effect, Parameter, Params, ReportContext, Signature, number};
+use super::{Base, Effect, Parameter, Params, Readjust, ReportContext, Signature, number};
 use crate::calibrate::features::Series;
 use crate::calibrate::replay::{Model, Setup};
 
@@ -56,5 +56,6 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
         name: NAME,
         params,
         predicted,
+        readjust: Readjust::from_tail(&beta),
     })
 }

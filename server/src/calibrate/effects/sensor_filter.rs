@@ -28,7 +28,7 @@ impl Effect for SensorFilter {
 
     fn signature(&self, series: &[Series], train: &[bool], base: Base) -> Option<Signature> {
         let grid = log_grid(CUTOFF_HZ[0], CUTOFF_HZ[1], 41);
-        let (cutoff, predicted) = fit_sensor_stage(series, train, base, &grid, &low_pass);
+        let (cutoff, predicted, readjust) = fit_sensor_stage(series, train, base, &grid, &low_pass);
         // At the grid's top the filter does nothing the data can see.
         if cutoff >= CUTOFF_HZ[1] * 0.999 {
             return None;
@@ -39,6 +39,7 @@ impl Effect for SensorFilter {
             name: NAME,
             params,
             predicted,
+            readjust: readjust,
         })
     }
 

@@ -8,7 +8,7 @@
 //! than the sites differ.
 
 use super::linear::*;
-use super::{Base, Effect, Parameter, Params, ReportContext, Signature};
+use super::{Base, Effect, Parameter, Params, Readjust, ReportContext, Signature};
 use crate::calibrate::features::Series;
 use crate::calibrate::replay::{Model, Setup};
 
@@ -132,6 +132,7 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
         name: NAME,
         params,
         predicted,
+        readjust: Readjust::from_tail(&beta),
     })
 }
 

@@ -12,7 +12,7 @@
 //! nuisance, and the residual without friction is the residual after it.
 
 use super::linear::least_squares;
-use super::{Base, Channel, Effect, Parameter, Params, ReportContext, Signature, number};
+use super::{Base, Channel, Effect, Parameter, Params, Readjust, ReportContext, Signature, number};
 use crate::calibrate::features::Series;
 use crate::calibrate::replay::{Model, Setup};
 
@@ -102,16 +102,18 @@ impl Effect for SlidingFriction {
     }
 
     fn signature(&self, series: &[Series], train: &[bool], _base: Base) -> Option<Signature> {
+        // Both parts of friction at once when both come out pushing against the motion;
+        // slides at one speed make them nearly collinear (μ·F_n·v̂ against b·v), and
+        // then Coulomb friction, the larger part on skin, goes first.
         let (mut beta, mut predicted) = fit(series, train, true, &[true; 4]);
-        // Neither part of friction can push the probe along its motion.
-        if beta[3] < 0.0 {
+        if beta[2] < 0.0 || beta[3] < 0.0 {
             (beta, predicted) = fit(series, train, true, &[true, true, true, false]);
-        }
-        if beta[2] < 0.0 {
-            (beta, predicted) = fit(series, train, true, &[true, true, false, true]);
-        }
-        if beta[2] <= 0.0 && beta[3] <= 0.0 {
-            return None;
+            if beta[2] <= 0.0 {
+                (beta, predicted) = fit(series, train, true, &[true, true, false, true]);
+                if beta[3] <= 0.0 {
+                    return None;
+                }
+            }
         }
         let mut params = Params::new();
         params.insert("mu_change".into(), beta[2].max(0.0).into());
@@ -122,6 +124,7 @@ impl Effect for SlidingFriction {
             name: NAME,
             params,
             predicted,
+            readjust: Readjust::default(),
         })
     }
 

@@ -3,7 +3,7 @@
 //! (`torso.moving_mass`).
 
 use super::linear::*;
-use super::{Base, Effect, Parameter, Params, ReportContext, Signature, number};
+use super::{Base, Effect, Parameter, Params, Readjust, ReportContext, Signature, number};
 use crate::calibrate::features::Series;
 use crate::calibrate::replay::{Model, Setup};
 
@@ -68,5 +68,6 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
         name: NAME,
         params,
         predicted,
+        readjust: Readjust::from_tail(&beta),
     })
 }

@@ -3,7 +3,7 @@
 //! Element: a Maxwell branch on every particle joint (`torso.relaxation`).
 
 use super::linear::*;
-use super::{Base, Effect, Parameter, Params, ReportContext, Signature, number};
+use super::{Base, Effect, Parameter, Params, Readjust, ReportContext, Signature, number};
 use crate::calibrate::features::Series;
 use crate::calibrate::model::RELAXATION_TAU_S;
 use crate::calibrate::replay::{Model, Setup};
@@ -98,6 +98,7 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
         name: NAME,
         params,
         predicted,
+        readjust: Readjust::from_tail(&beta),
     })
 }
 
