@@ -248,7 +248,7 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
         name: NAME,
         params,
         predicted,
-        readjust: readjust,
+        readjust,
     })
 }
 

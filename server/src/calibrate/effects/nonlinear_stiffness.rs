@@ -78,6 +78,6 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
         name: NAME,
         params,
         predicted,
-        readjust: readjust,
+        readjust,
     })
 }

@@ -39,7 +39,7 @@ impl Effect for SensorFilter {
             name: NAME,
             params,
             predicted,
-            readjust: readjust,
+            readjust,
         })
     }
 
