@@ -191,6 +191,14 @@ fn delay_and_site_heterogeneity_together_are_both_named() {
 }
 
 #[test]
+fn sliding_friction_and_bias_drift_together_are_both_named() {
+    let run = calibrate(&["sliding_friction", "bias_drift"], 6);
+    expect(&run, &["bias_drift", "sliding_friction"]);
+    near(run.param("bias_drift", "total_n"), 0.1);
+    near(run.param("sliding_friction", "mu"), 0.2);
+}
+
+#[test]
 fn a_broken_dataset_is_refused_naming_file_and_row_and_nothing_is_written() {
     let dir = scratch("broken");
     let generated = echogym(&[

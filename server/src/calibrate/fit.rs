@@ -257,8 +257,9 @@ fn damped_step(jac: &DMatrix<f64>, r: &DVector<f64>, lambda: f64) -> Option<DVec
 }
 
 /// 95 % half-widths and correlations from `σ²(JᵀJ)⁻¹`, with `σ²` the residual variance
-/// and the sample count shrunk by the residual's lag-1 autocorrelation `ρ`
-/// (`m_eff = m(1−ρ)/(1+ρ)`): neighbouring samples of a recording are not independent.
+/// and the sample count shrunk by the residual's integrated autocorrelation time
+/// (`m_eff = m/τ_int`, see [`autocorrelation_time`]): neighbouring samples of a recording
+/// are not independent, and a model error correlates them over seconds, not one lag.
 /// Parameters at a bound are held fixed (half-width 0).
 fn uncertainty(
     jac: &DMatrix<f64>,
@@ -274,8 +275,7 @@ fn uncertainty(
     if free.is_empty() || m <= n {
         return (half, corr);
     }
-    let rho = lag_one_autocorrelation(r).clamp(0.0, 0.999);
-    let inflation = (1.0 + rho) / (1.0 - rho);
+    let inflation = autocorrelation_time(r, MAX_LAG);
     let sigma2 = cost / (m - free.len()) as f64 * inflation;
     let sub = DMatrix::from_fn(m, free.len(), |i, k| jac[(i, free[k])]);
     let svd = sub.svd(false, true);
@@ -305,6 +305,40 @@ fn uncertainty(
         }
     }
     (half, corr)
+}
+
+/// Longest lag the autocorrelation time sums over (2 s of residual rows at 100 Hz).
+const MAX_LAG: usize = 200;
+
+/// Integrated autocorrelation time of the residual, pooled over blocks:
+/// `τ = 1 + 2·Σ ρ_k`, summed while `ρ_k` stays positive (the initial positive sequence)
+/// and at most to `max_lag`; 1 for white noise, `(1+ρ)/(1−ρ)` for an AR(1).
+pub fn autocorrelation_time(r: &[Vec<f64>], max_lag: usize) -> f64 {
+    let centred: Vec<Vec<f64>> = r
+        .iter()
+        .map(|block| {
+            let mean = block.iter().sum::<f64>() / block.len().max(1) as f64;
+            block.iter().map(|v| v - mean).collect()
+        })
+        .collect();
+    let den: f64 = centred.iter().flatten().map(|v| v * v).sum();
+    if den <= 0.0 {
+        return 1.0;
+    }
+    let mut tau = 1.0;
+    for lag in 1..=max_lag {
+        let num: f64 = centred
+            .iter()
+            .filter(|b| b.len() > lag)
+            .map(|b| b.iter().zip(&b[lag..]).map(|(a, c)| a * c).sum::<f64>())
+            .sum();
+        let rho = num / den;
+        if rho <= 0.0 {
+            break;
+        }
+        tau += 2.0 * rho;
+    }
+    tau
 }
 
 /// Lag-1 autocorrelation of the residual, pooled over blocks.
@@ -416,5 +450,32 @@ mod tests {
         }
         // Slope and offsets are correlated (all x ≥ 0), but not unidentifiable.
         assert!(fit.correlation[1].abs() > 0.5 && fit.correlation[1].abs() < 0.95);
+    }
+
+    #[test]
+    fn autocorrelation_time_is_one_for_white_noise_and_grows_with_memory() {
+        // A deterministic pseudo-random sequence (LCG) and its AR(1) filter, ρ = 0.8.
+        let mut state = 12345u64;
+        let white: Vec<f64> = (0..20_000)
+            .map(|_| {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            })
+            .collect();
+        let mut y = 0.0;
+        let ar: Vec<f64> = white
+            .iter()
+            .map(|w| {
+                y = 0.8 * y + w;
+                y
+            })
+            .collect();
+        let white_tau = autocorrelation_time(&[white], MAX_LAG);
+        let ar_tau = autocorrelation_time(&[ar], MAX_LAG);
+        assert!(white_tau < 1.1, "white noise: τ {white_tau}");
+        // (1 + ρ)/(1 − ρ) = 9 for an AR(1).
+        assert!((ar_tau - 9.0).abs() < 1.5, "AR(1) ρ 0.8: τ {ar_tau}");
     }
 }
