@@ -10,7 +10,7 @@
 //!    train recordings ([`model`], [`fit`]).
 //! 3. [`mismatch`]: where the baseline's residual lives (recording and span, phase,
 //!    depth and velocity region, frequency band), against the noise floor ([`noise`]).
-//! 4. Selection: the catalogue's signatures ([`effects`]) fitted on the train residual,
+//! 4. [`select`]: the catalogue's signatures ([`effects`]) fitted on the train residual,
 //!    forward selection gated on the validation recordings, each further effect needing
 //!    stronger evidence than the one before; each accepted effect is modelled as a
 //!    simulator element, everything is refitted by replay ([`model`]) and the simulator
@@ -30,6 +30,7 @@ pub mod onset;
 pub mod replay;
 pub mod report;
 pub mod seed_method;
+pub mod select;
 pub mod session;
 pub mod split;
 pub mod synth;
@@ -39,22 +40,10 @@ pub mod unexplained;
 use std::path::{Path, PathBuf};
 
 use crate::recordings::{Dataset, RecordingsError};
-use features::{Series, rmse};
-use model::{FitDiagnostics, Free, apply_effects, fit_model};
+use features::Series;
+use model::FitDiagnostics;
 use replay::{Model, Setup, replay_all};
 use split::Split;
-
-/// Validation RMSE reduction the first accepted effect needs (relative).
-pub const FIRST_GAIN: f64 = 0.05;
-/// Each further effect needs this much more (relative to the previous threshold).
-pub const ESCALATION: f64 = 1.5;
-/// Share of the validation excess error (above the noise floor) an effect must explain.
-pub const MIN_EXPLAINED: f64 = 0.3;
-/// A runner-up signature within this share of the best one's validation gain is
-/// modelled in the simulator too, and the simulator decides.
-pub const CLOSE_CALL: f64 = 0.75;
-/// LM iterations of the refit after each accepted effect.
-const EFFECT_ITERATIONS: usize = 5;
 
 /// Why calibration failed.
 #[derive(Debug, thiserror::Error)]
@@ -211,172 +200,26 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
     progress.stage("locating the mismatch");
     let located = mismatch::locate(&series);
 
-    let is_train: Vec<bool> = all.iter().map(|i| split.train.contains(i)).collect();
-    let is_validation: Vec<bool> = all.iter().map(|i| split.validation.contains(i)).collect();
-
     progress.stage("naming effects: validation tests of the catalogue, each modelled and refitted in the simulator");
-    // Forward selection, one effect per round. Each round's candidate is judged on the
-    // residual of the simulator as calibrated so far (baseline and accepted effects
-    // refitted by replay), so a weak effect is not hidden behind a strong one's
-    // linearisation; then the validation test in the simulator itself: the refitted
-    // simulator must beat the previous one on the validation recordings by the round's
-    // threshold, else the effect is excluded and the round runs again without it.
-    let mut calibrated = base.clone();
-    let mut calibrated_fit = fitted.diagnostics.clone();
-    let mut current: Vec<Series> = series.clone();
-    let mut current_predictions = predictions.clone();
-    let mut accepted: Vec<report::Accepted> = Vec::new();
-    let mut excluded: Vec<&'static str> = Vec::new();
-    let mut failed: Vec<report::Rejected> = Vec::new();
-    let mut rejected: Vec<report::Rejected> = Vec::new();
-    let mut threshold = FIRST_GAIN;
-    for _attempt in 0..6 {
-        let k_now = calibrated.stiffness * k_per_unit;
-        let mut skip = excluded.clone();
-        for a in &accepted {
-            skip.push(a.name);
-            // What an accepted effect contains is found already.
-            skip.extend(effects::named(a.name).and_then(|e| e.contains()));
-        }
-        let round = select_effects(
-            &current,
-            &is_train,
-            &is_validation,
-            effects::Base {
-                k: k_now,
-                c: k_now * calibrated.damping / calibrated.stiffness,
-                center_xy: setup.center_xy,
-                half_size: [setup.torso.size[0] / 2.0, setup.torso.size[1] / 2.0],
-            },
-            noise,
-            &skip,
-            threshold,
-        );
-        rejected = round.rejected;
-        // No signature passed: the best near miss gets a trial in the simulator, where
-        // it must explain the share of the excess the signature could not show.
-        let second_chance = round.passed.is_empty();
-        let found = if second_chance {
-            round.near.into_iter().take(1).collect()
-        } else {
-            round.passed
-        };
-        let Some(first) = found.first() else {
-            break;
-        };
-        // A close call between signatures (linearised around a baseline the missing
-        // effect distorted) is decided in the simulator: the runner-up is modelled too
-        // and the better validation gain wins.
-        let contenders: Vec<&report::Accepted> = found
-            .iter()
-            .take(2)
-            .filter(|c| c.gain >= CLOSE_CALL * first.gain)
-            .collect();
-        let trials: Vec<Trial> = contenders
-            .iter()
-            .map(|effect| {
-                let entry = effects::named(effect.name).expect("selected from the catalogue");
-                let mut model = calibrated.clone();
-                apply_effects(&mut model, std::slice::from_ref(*effect), &setup);
-                // The refit starts where the signature put the baseline.
-                readjust(&mut model, effect.readjust, k_now);
-                // An effect this one contains is replaced by it (its parameter is this
-                // one's).
-                let replaced = entry.contains();
-                let mut names: Vec<&str> = accepted
-                    .iter()
-                    .map(|a| a.name)
-                    .filter(|name| Some(*name) != replaced)
-                    .collect();
-                names.push(effect.name);
-                let (refitted, diagnostics) = fit_model(
-                    &setup,
-                    &dataset,
-                    &split.train,
-                    model,
-                    &names,
-                    Free::PER_SITE,
-                    EFFECT_ITERATIONS,
-                );
-                let (model, _) = baseline::surface_elsewhere(&setup, &dataset, &split, refitted);
-                let predictions = replay_all(&setup, &model, &dataset.recordings, &all);
-                let channel = entry.channel();
-                let before =
-                    rmse_against(&dataset, &split.validation, &current_predictions, channel);
-                let after = rmse_against(&dataset, &split.validation, &predictions, channel);
-                tracing::debug!(
-                    "{} modelled in the simulator: validation {before:.4} → {after:.4} N",
-                    effect.name
-                );
-                Trial {
-                    effect: (*effect).clone(),
-                    replaced,
-                    model,
-                    diagnostics,
-                    predictions,
-                    before,
-                    after,
-                }
-            })
-            .collect();
-        let mut trials = trials;
-        trials.sort_by(|a, b| b.gain().total_cmp(&a.gain()));
-        let trial = trials.swap_remove(0);
-        // The runner-up stays a candidate: both may be present (the next round sees
-        // the residual with the winner modelled).
-        for other in trials {
-            tracing::debug!(
-                "close call: {} ({:.1} %) over {} ({:.1} %)",
-                trial.effect.name,
-                100.0 * trial.gain(),
-                other.effect.name,
-                100.0 * other.gain()
-            );
-        }
-        let (before, after) = (trial.before, trial.after);
-        let explained =
-            (before * before - after * after) / (before * before - noise * noise).max(1e-12);
-        if trial.gain() >= threshold && (!second_chance || explained >= MIN_EXPLAINED) {
-            calibrated = trial.model;
-            calibrated_fit = trial.diagnostics;
-            current = series_of(&dataset, &setup, &trial.predictions);
-            current_predictions = trial.predictions;
-            accepted.retain(|a| Some(a.name) != trial.replaced);
-            accepted.push(trial.effect);
-            threshold *= ESCALATION;
-        } else {
-            excluded.push(trial.effect.name);
-            failed.push(report::Rejected {
-                name: trial.effect.name,
-                why: format!(
-                    "{}, but modelled in the simulator the validation RMSE went {before:.3} → {after:.3} N ({:.0} % of the excess; needs {:.1} % lower{})",
-                    if second_chance {
-                        "its signature nearly passed"
-                    } else {
-                        "its signature passed"
-                    },
-                    100.0 * explained,
-                    100.0 * threshold,
-                    if second_chance {
-                        format!(" and {:.0} %", 100.0 * MIN_EXPLAINED)
-                    } else {
-                        String::new()
-                    }
-                ),
-                explained: None,
-            });
-        }
-    }
-    let closest = rejected
-        .iter()
-        .filter_map(|r| r.explained.map(|e| (r.name, e)))
-        .filter(|(_, e)| *e > 0.0)
-        .max_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(name, _)| name);
-    rejected.extend(failed);
-    let heldout = split.heldout();
-    let verdict = unexplained::assess(&current, &heldout, noise, closest);
-    let calibrated_fz = current_predictions.into_iter().map(|p| p.fz).collect();
+    let selected = select::select(&select::Inputs {
+        dataset: &dataset,
+        setup: &setup,
+        split: &split,
+        baseline: &base,
+        baseline_fit: &fitted.diagnostics,
+        series: &series,
+        predictions: &predictions,
+        noise,
+        k_per_unit,
+    });
+    let select::Selection {
+        calibrated,
+        calibrated_fit,
+        accepted,
+        rejected,
+        verdict,
+        calibrated_fz,
+    } = selected;
 
     progress.stage("writing the report");
     let seed_fits = seed_method::seed_method(&series, -base.surface_offset);
@@ -405,46 +248,6 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
     Ok(outcome)
 }
 
-/// Move `model`'s baseline by a signature's readjustment (`k_now`: its contact
-/// stiffness [N/m]), within the refit's bounds.
-fn readjust(model: &mut Model, r: effects::Readjust, k_now: f64) {
-    let per_contact = model.stiffness / k_now;
-    model.damping = (model.damping + r.damping * per_contact).clamp(0.1, 500.0);
-    model.stiffness = (model.stiffness * (1.0 + r.stiffness)).clamp(50.0, 30_000.0);
-    model.surface_offset = (model.surface_offset + r.offset_m).clamp(-0.02, 0.02);
-}
-
-/// One round of selection.
-struct Round {
-    /// Effects whose signatures passed, best first.
-    passed: Vec<report::Accepted>,
-    /// Effects whose signatures passed the gains but explained between half the share
-    /// and the share the gate needs, best first.
-    near: Vec<report::Accepted>,
-    /// Why the others (and the near misses) failed.
-    rejected: Vec<report::Rejected>,
-}
-
-/// An effect modelled in the simulator and refitted, with its validation figures.
-struct Trial {
-    effect: report::Accepted,
-    /// The accepted effect it replaces (one it contains).
-    replaced: Option<&'static str>,
-    model: Model,
-    diagnostics: FitDiagnostics,
-    predictions: Vec<replay::Prediction>,
-    /// Validation RMSE before and after, in the effect's channel [N].
-    before: f64,
-    after: f64,
-}
-
-impl Trial {
-    /// Relative validation RMSE reduction.
-    fn gain(&self) -> f64 {
-        (self.before - self.after) / self.before.max(1e-12)
-    }
-}
-
 /// Every recording with a prediction of it (predictions in recording order).
 fn series_of(dataset: &Dataset, setup: &Setup, predictions: &[replay::Prediction]) -> Vec<Series> {
     dataset
@@ -463,164 +266,6 @@ fn series_of(dataset: &Dataset, setup: &Setup, predictions: &[replay::Prediction
             Series::new(i, e, site_index, rec, p, &setup.session)
         })
         .collect()
-}
-
-/// One round of forward selection on the current residual: every candidate's signature
-/// is fitted on the train recordings and judged on the validation recordings, in the
-/// channel it shows in; the best one that passes the round's `threshold` (and explains
-/// enough of the excess over the noise floor, and helps on train too) is returned, with
-/// the reasons the others failed; all that pass, best first. An effect that contains another that passed too
-/// (a drifting bias, a constant one) must beat it by the round's threshold.
-fn select_effects(
-    series: &[Series],
-    train: &[bool],
-    validation: &[bool],
-    base: effects::Base,
-    noise: f64,
-    excluded: &[&str],
-    threshold: f64,
-) -> Round {
-    let residuals = |channel: effects::Channel| -> Vec<Vec<f64>> {
-        series.iter().map(|s| s.residual_in(channel)).collect()
-    };
-    let by_channel = [effects::Channel::Normal, effects::Channel::Lateral].map(residuals);
-    let rmse_where = |channel: effects::Channel, mask: &[bool], pred: &[Vec<f64>]| {
-        let residual = &by_channel[usize::from(channel == effects::Channel::Lateral)];
-        let rs: Vec<Vec<f64>> = residual
-            .iter()
-            .enumerate()
-            .filter(|(k, _)| mask[*k])
-            .map(|(k, r)| r.iter().zip(&pred[k]).map(|(r, q)| r - q).collect())
-            .collect();
-        let refs: Vec<&[f64]> = rs.iter().map(|r| r.as_slice()).collect();
-        rmse(&refs)
-    };
-    let normal_null = effects::readjusted(series, train, base);
-    let mut passed: Vec<(f64, effects::Signature, f64, f64, f64)> = Vec::new();
-    let mut near: Vec<(f64, effects::Signature, f64, f64, f64)> = Vec::new();
-    let mut rejected = Vec::new();
-    for effect in effects::CATALOGUE {
-        let name = effect.name();
-        if excluded.contains(&name) {
-            continue;
-        }
-        let channel = effect.channel();
-        let null = if channel == effects::Channel::Normal {
-            normal_null.clone()
-        } else {
-            effect.null(series, train, base)
-        };
-        let before_v = rmse_where(channel, validation, &null);
-        let before_t = rmse_where(channel, train, &null);
-        let Some(sig) = effect.signature(series, train, base) else {
-            rejected.push(report::Rejected {
-                name,
-                why: "signature absent (fitted with the wrong sign, too small, or failing its specificity test)".into(),
-                explained: None,
-            });
-            continue;
-        };
-        let after_v = rmse_where(channel, validation, &sig.predicted);
-        let after_t = rmse_where(channel, train, &sig.predicted);
-        let gain_v = (before_v - after_v) / before_v.max(1e-12);
-        let gain_t = (before_t - after_t) / before_t.max(1e-12);
-        // Beyond the noise floor: the effect must explain part of the excess error.
-        let excess = (before_v * before_v - noise * noise).max(1e-12);
-        let explained = (before_v * before_v - after_v * after_v) / excess;
-        tracing::debug!(
-            "signature {name}: validation {before_v:.4} → {after_v:.4} N, train {:+.1} %, {:.0} % of the excess, {:?}",
-            -100.0 * gain_t,
-            100.0 * explained,
-            sig.params
-        );
-        let gains = gain_v >= threshold && gain_t >= threshold / 2.0;
-        if gains && explained >= MIN_EXPLAINED {
-            passed.push((gain_v, sig, before_v, after_v, gain_t));
-        } else {
-            // The linearisation may undersell an effect that distorted the baseline:
-            // one that passes the gains and explains half the share, on a residual well
-            // above the noise, gets its trial in the simulator.
-            if gains && explained >= MIN_EXPLAINED / 2.0 && before_v > unexplained::RATIO * noise {
-                near.push((gain_v, sig.clone(), before_v, after_v, gain_t));
-            }
-            rejected.push(report::Rejected {
-                name,
-                why: format!(
-                    "validation RMSE {before_v:.3} → {after_v:.3} N ({:+.1} %, {:.0} % of the excess over noise), train {:+.1} %: needs {:.1} % and {:.0} %",
-                    -100.0 * gain_v,
-                    100.0 * explained,
-                    -100.0 * gain_t,
-                    100.0 * threshold,
-                    100.0 * MIN_EXPLAINED
-                ),
-                explained: Some(explained),
-            });
-        }
-    }
-    passed.sort_by(|a, b| b.0.total_cmp(&a.0));
-    if let Some(best) = passed.first()
-        && let Some(inner) = effects::named(best.1.name).and_then(|e| e.contains())
-        && let Some(k) = passed.iter().position(|p| p.1.name == inner)
-        && best.3 > passed[k].3 * (1.0 - threshold)
-    {
-        let contained = passed.remove(k);
-        passed.insert(0, contained);
-    }
-    near.sort_by(|a, b| b.0.total_cmp(&a.0));
-    let as_accepted = |(gain, sig, before_v, after_v, gain_t): (
-        f64,
-        effects::Signature,
-        f64,
-        f64,
-        f64,
-    )| report::Accepted {
-        name: sig.name,
-        params: sig.params,
-        evidence: format!(
-            "validation RMSE {before_v:.3} → {after_v:.3} N ({:.1} % lower; needed {:.1} %), train {:.1} % lower",
-            100.0 * gain,
-            100.0 * threshold,
-            100.0 * gain_t
-        ),
-        heldout_rmse_n: after_v,
-        gain,
-        readjust: sig.readjust,
-    };
-    Round {
-        passed: passed.into_iter().map(as_accepted).collect(),
-        near: near.into_iter().map(as_accepted).collect(),
-        rejected,
-    }
-}
-
-/// RMSE of the measured force in `channel` against `predictions` over the recordings
-/// `indices`.
-fn rmse_against(
-    dataset: &Dataset,
-    indices: &[usize],
-    predictions: &[replay::Prediction],
-    channel: effects::Channel,
-) -> f64 {
-    let rs: Vec<Vec<f64>> = indices
-        .iter()
-        .map(|&i| {
-            let rec = &dataset.recordings[i];
-            let p = &predictions[i];
-            match channel {
-                effects::Channel::Normal => {
-                    rec.f.iter().zip(&p.fz).map(|(m, q)| m[2] - q).collect()
-                }
-                effects::Channel::Lateral => rec
-                    .f
-                    .iter()
-                    .zip(&p.fxy)
-                    .flat_map(|(m, q)| [m[0] - q[0], m[1] - q[1]])
-                    .collect(),
-            }
-        })
-        .collect();
-    let refs: Vec<&[f64]> = rs.iter().map(|r| r.as_slice()).collect();
-    rmse(&refs)
 }
 
 /// Path helper for outputs.

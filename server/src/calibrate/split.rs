@@ -8,7 +8,9 @@
 //! A protocol with three or more recordings gives one to validation and one to test; the
 //! protocols with exactly two give one each, alternately to validation and test (seeded
 //! order), so each kind of excitation is held out somewhere while every protocol keeps a
-//! training recording. A recording is never held out if it is its site's last training
+//! training recording. A pair whose recordings slide sideways in contact gives its
+//! held-out one to validation: the tangential force (friction) shows only there and is
+//! chosen on validation, while the test's figures are in `fz`. A recording is never held out if it is its site's last training
 //! recording. Segments of one file split at a gap stay together. With nothing held out
 //! that way, a third of the recordings are (half to
 //! validation, half to test), and with two recordings one trains and one validates.
@@ -52,6 +54,7 @@ pub fn split(dataset: &Dataset, seed: u64) -> Split {
     protocols.dedup();
     protocols.shuffle(&mut rng);
     let mut pairs_to_test = false;
+    let slides = |i: usize| slides_in_contact(&dataset.recordings[i]);
     for protocol in protocols {
         let mut at: Vec<usize> = (0..n)
             .filter(|&i| entries[i].protocol == protocol)
@@ -62,6 +65,8 @@ pub fn split(dataset: &Dataset, seed: u64) -> Split {
         at.shuffle(&mut rng);
         let sets: &[bool] = if at.len() >= 3 {
             &[false, true]
+        } else if at.iter().all(|&i| slides(i)) {
+            &[false]
         } else {
             pairs_to_test = !pairs_to_test;
             if pairs_to_test { &[false] } else { &[true] }
@@ -119,4 +124,24 @@ pub fn split(dataset: &Dataset, seed: u64) -> Split {
         validation,
         test,
     }
+}
+/// Sideways span in contact that makes a recording a slide [m].
+const SLIDE_SPAN_M: f64 = 0.01;
+/// Force that counts as contact for it [N].
+const SLIDE_CONTACT_N: f64 = 0.5;
+
+/// Whether the probe spans ≥ 1 cm sideways (in x or y) while pressing (a span, not a
+/// path length: encoder noise adds up along a path).
+fn slides_in_contact(rec: &crate::recordings::Recording) -> bool {
+    let mut lo = [f64::INFINITY; 2];
+    let mut hi = [f64::NEG_INFINITY; 2];
+    for (p, f) in rec.p.iter().zip(&rec.f) {
+        if f[2] > SLIDE_CONTACT_N {
+            for axis in 0..2 {
+                lo[axis] = lo[axis].min(p[axis]);
+                hi[axis] = hi[axis].max(p[axis]);
+            }
+        }
+    }
+    (0..2).any(|axis| hi[axis] - lo[axis] >= SLIDE_SPAN_M)
 }
