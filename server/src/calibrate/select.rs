@@ -135,10 +135,13 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
         // A close call between signatures (linearised around a baseline the missing
         // effect distorted) is decided in the simulator: the runner-up is modelled too
         // and the better validation gain wins.
+        // (Not between an effect and one it contains: the contains rule decided those.)
+        let contains = |a: &str, b: &str| effects::named(a).and_then(|e| e.contains()) == Some(b);
         let contenders: Vec<&report::Accepted> = found
             .iter()
             .take(2)
             .filter(|c| c.gain >= CLOSE_CALL * first.gain)
+            .filter(|c| !contains(c.name, first.name) && !contains(first.name, c.name))
             .collect();
         let trials: Vec<Trial> = contenders
             .iter()
