@@ -143,8 +143,10 @@ fn solve(
 ) -> Solved {
     let p = cols.first().map_or(0, |c| c.len());
     let trained: Vec<usize> = (0..targets.len()).filter(|&k| train[k]).collect();
+    // Without recording levels (see `RECORDING_LEVELS`) no level columns are built.
+    let levelled: &[usize] = if RECORDING_LEVELS { &trained } else { &[] };
     let rows: usize = trained.iter().map(|&k| targets[k].len()).sum();
-    let mut stacked = vec![Vec::with_capacity(rows); p + trained.len()];
+    let mut stacked = vec![Vec::with_capacity(rows); p + levelled.len()];
     let mut y = Vec::with_capacity(rows);
     for (position, &k) in trained.iter().enumerate() {
         for (j, c) in cols[k].iter().enumerate() {
@@ -178,8 +180,9 @@ fn solve(
             let shared: Vec<f64> = (0..targets[k].len())
                 .map(|i| cols[k].iter().zip(&beta).map(|(c, b)| b * c[i]).sum())
                 .collect();
-            let a = match trained.iter().position(|&t| t == k) {
+            let a = match levelled.iter().position(|&t| t == k) {
                 Some(position) => beta[p + position],
+                None if !RECORDING_LEVELS => 0.0,
                 None => {
                     let (num, den) = level[k]
                         .iter()
