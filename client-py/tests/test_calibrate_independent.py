@@ -4,7 +4,8 @@ curved body with a different height under every site, coloured sensor noise, enc
 noise, a tilted probe, timestamp jitter) are calibrated by the real CLI. The tool must
 name exactly the concealed catalogue effects (none when there is none), keep the
 no-effect baseline within 1.3× the noise floor on the test recordings, and find the
-surface heights the generator put under the sites.
+surface heights the generator put under the sites. The console script reads
+`--out=OUT` as the Rust CLI does and draws the report's plots there.
 
 The full matrix (every effect, pairs, three seeds) is run by hand; its results are in
 docs/results/calibration.md. These two cases run in CI (2–4 minutes each on 2 cores).
@@ -36,12 +37,14 @@ def generate(tmp_path: Path, effects: str, seed: int) -> Path:
 def calibrate(case: Path) -> dict:
     out = case / "out"
     run = subprocess.run(
-        [sys.executable, "-m", "echogym", "calibrate", str(case / "dataset"), "--out", str(out), "--quiet"],
+        [sys.executable, "-m", "echogym", "calibrate", str(case / "dataset"), f"--out={out}", "--quiet"],
         capture_output=True,
         text=True,
         timeout=600,
     )
     assert run.returncode == 0, run.stderr
+    for plot in ("residual_map.png", "heldout_before_after.png", "seed_regression.png"):
+        assert (out / plot).read_bytes()[:4] == b"\x89PNG", plot
     return json.loads((out / "report.json").read_text())
 
 

@@ -1,6 +1,7 @@
 """The README's main job, `echogym demo`: the scripted hybrid force/motion sweep on 8
 UltrasoundScan envs holds the contact force within ±1 N of 5 N for at least 80 % of the
-in-contact time, completes the sweep, and writes its figures and summary."""
+in-contact time, completes the sweep, and writes its figures and summary. Its output into
+a pipe is plain lines: no progress-bar carriage returns, no escape codes."""
 
 import json
 import subprocess
@@ -23,3 +24,5 @@ def test_demo_sweep_holds_the_force_and_writes_figures(server, tmp_path):
     for name in ("force.png", "frames.png"):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "env-steps/s" in result.stdout
+    for stream in (result.stdout, result.stderr):
+        assert "\r" not in stream and "\x1b[" not in stream, repr(stream[:300])

@@ -9,7 +9,7 @@ import sys
 
 import numpy as np
 
-from echogym.demo import scripted_action
+from echogym.apps.sweep_policy import scripted_action
 from echogym.gym_vector import EchoVectorEnv
 
 SCAN = "echogym/UltrasoundScan-v0"

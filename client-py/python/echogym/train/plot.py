@@ -3,7 +3,8 @@
 Draws, against env steps, the training episodes' return and success rate (smoothed over
 ``--smooth`` iterations) from ``progress.csv`` and the evaluation points from
 ``eval.csv`` (success rate; the force-band share for envs with a contact force), with
-optional horizontal reference lines (``--baseline NAME=VALUE``) for baselines.
+optional horizontal reference lines (``--baseline NAME=VALUE``) for baselines. Needs
+matplotlib (``pip install 'echogym[plots]'``, part of ``[train]``).
 """
 
 from __future__ import annotations
@@ -14,6 +15,8 @@ import sys
 from pathlib import Path
 
 import numpy as np
+
+from echogym.apps.plotting import pyplot
 
 
 def _read(path: Path) -> dict[str, np.ndarray]:
@@ -45,11 +48,7 @@ def plot_run(
     baselines: dict[str, float] | None = None,
 ) -> Path:
     """Write the learning-curve PNG of ``logdir`` to ``out``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     logdir = Path(logdir)
     progress = _read(logdir / "progress.csv")
     evaluation = _read(logdir / "eval.csv")

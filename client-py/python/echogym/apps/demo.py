@@ -7,11 +7,14 @@ scripted policy over shared memory: follow the moving target point on the torso 
 the probe upright. The torso breathes and its stiffness, damping and placement are
 randomized per env.
 
-Prints a progress bar, then force tracking (share of the in-contact time within ±1 N of
+Shows a progress bar on a terminal (tqdm on stderr; nothing when redirected), then prints
+force tracking (share of the in-contact time within ±1 N of
 the target), sweep completion and env-steps/s; writes ``force.png`` (contact force vs
 time against the target), ``frames.png`` (camera frames and the probe's B-mode
 ultrasound image, from a twin of env 0) and ``summary.json`` to
 ``--out``. Exit code 0 when the sweep met the ±1 N / 80 % criterion, else 1.
+
+The figures need matplotlib (``pip install 'echogym[plots]'``).
 """
 
 from __future__ import annotations
@@ -25,55 +28,12 @@ from pathlib import Path
 import numpy as np
 
 import echogym
+from echogym._progress import progress_bar
+from echogym.apps.plotting import pyplot
+from echogym.apps.sweep_policy import scripted_action
 from echogym.gym_vector import EchoVectorEnv
 
 ENV_ID = "echogym/UltrasoundScan-v0"
-#: The probe upright (face down, array along world y) as a quaternion (x, y, z, w).
-UPRIGHT = np.array([1.0, 0.0, 0.0, 0.0])
-#: Look-ahead of the scripted policy along the target's motion [s].
-LEAD_S = 0.2
-POSITION_LIMIT = 0.05
-ROTATION_LIMIT = 0.5
-
-
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product of (x, y, z, w) quaternions, batched over the first axis."""
-    ax, ay, az, aw = np.moveaxis(a, -1, 0)
-    bx, by, bz, bw = np.moveaxis(b, -1, 0)
-    return np.stack([
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-        aw * bw - ax * bx - ay * by - az * bz,
-    ], axis=-1)
-
-
-def rotation_to_upright(quat: np.ndarray) -> np.ndarray:
-    """Axis-angle (world frame) that turns each probe orientation into upright."""
-    conj = quat * np.array([-1.0, -1.0, -1.0, 1.0])
-    err = _quat_mul(np.broadcast_to(UPRIGHT, quat.shape), conj)
-    err = np.where(err[..., 3:4] < 0, -err, err)
-    vec = err[..., :3]
-    norm = np.linalg.norm(vec, axis=-1, keepdims=True)
-    angle = 2.0 * np.arctan2(norm, err[..., 3:4])
-    return np.where(norm > 1e-12, vec / np.maximum(norm, 1e-12) * angle, 0.0)
-
-
-def scripted_action(obs: dict[str, np.ndarray]) -> np.ndarray:
-    """The sweep policy for the hybrid controller: tangent-plane motion towards the
-    target point (with look-ahead), orientation back to upright; the controller holds
-    the force."""
-    errors = obs["task_errors"].astype(np.float64)
-    n = errors.shape[0]
-    action = np.zeros((n, 6))
-    action[:, 0:2] = (-errors[:, 0:2] + LEAD_S * errors[:, 6:8]) / POSITION_LIMIT
-    action[:, 3:6] = rotation_to_upright(obs["probe_pose"][:, 3:7].astype(np.float64)) / ROTATION_LIMIT
-    return np.clip(action, -1.0, 1.0).astype(np.float32)
-
-
-def _bar(fraction: float, width: int = 30) -> str:
-    filled = int(round(fraction * width))
-    return "[" + "#" * filled + "." * (width - filled) + "]"
 
 
 def run(num_envs: int, horizon: int, seed: int, server: str | None, robot: str,
@@ -102,6 +62,7 @@ def run(num_envs: int, horizon: int, seed: int, server: str | None, robot: str,
     termination = np.zeros(num_envs)
     frames: list[tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
     frame_steps = set(np.linspace(0, horizon - 1, 4).astype(int))
+    bar = progress_bar(horizon, enabled=progress, unit="step")
     started = time.perf_counter()
     for step in range(horizon):
         action = scripted_action(obs)
@@ -122,15 +83,12 @@ def run(num_envs: int, horizon: int, seed: int, server: str | None, robot: str,
         if step in frame_steps:
             frames.append((step * dt, np.array(view["front_rgb"][0]), np.array(view["side_rgb"][0]),
                            np.array(view["probe_depth"][0]), np.array(view["ultrasound"][0])))
-        if progress and (step % 25 == 0 or step == horizon - 1):
-            elapsed = time.perf_counter() - started
-            rate = (step + 1) * num_envs / elapsed
-            sys.stdout.write(f"\r{_bar((step + 1) / horizon)} {step + 1}/{horizon} steps "
-                             f"{rate:8,.0f} env-steps/s")
-            sys.stdout.flush()
+        bar.update(1)
+        if step % 25 == 0:
+            bar.set_postfix_str(f"{(step + 1) * num_envs / (time.perf_counter() - started):,.0f} env-steps/s",
+                                refresh=False)
     elapsed = time.perf_counter() - started
-    if progress:
-        print()
+    bar.close()
     envs.close()
     viewer.close()
     in_contact = contact.sum()
@@ -156,11 +114,7 @@ def run(num_envs: int, horizon: int, seed: int, server: str | None, robot: str,
 
 def write_figures(result: dict, out: Path) -> list[Path]:
     """force.png and frames.png; the paths written."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     out.mkdir(parents=True, exist_ok=True)
     force, contact, dt = result["_force"], result["_contact"], result["dt_s"]
     t = np.arange(force.shape[0]) * dt
@@ -216,6 +170,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--server", default=None,
                         help="server name (default $ECHOGYM_SERVER or 'default'; started if absent)")
     args = parser.parse_args(argv)
+    try:
+        pyplot()
+    except ImportError as exc:
+        print(f"echogym demo: {exc}", file=sys.stderr)
+        return 2
 
     print(f"echogym {echogym.__version__}: {ENV_ID} x {args.num_envs}, {args.robot}, "
           f"hybrid force/motion, scripted sweep, {args.horizon} steps at 500 Hz")

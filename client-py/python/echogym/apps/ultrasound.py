@@ -13,12 +13,14 @@ Starts (or joins) an echogym server and writes to ``--out``:
   end, the vertebra on the midline, the kidney and liver.
 
 Every image is the env's ``ultrasound`` observation (uint8, rows = depth from the face,
-columns = scan lines along the array) delivered over shared memory.
+columns = scan lines along the array) delivered over shared memory. The figures need
+matplotlib (``pip install 'echogym[plots]'``).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
@@ -26,7 +28,8 @@ from pathlib import Path
 import numpy as np
 
 import echogym
-from echogym.demo import scripted_action
+from echogym.apps.plotting import pyplot
+from echogym.apps.sweep_policy import scripted_action
 from echogym.gym_vector import EchoVectorEnv
 
 SCAN_ID = "echogym/UltrasoundScan-v0"
@@ -106,10 +109,7 @@ def _show(ax, image: np.ndarray, ultrasound: dict, title: str) -> None:
 def write_figures(out: Path, press: list[dict], sites: list[dict], frames: list[dict],
                   ultrasound: dict) -> list[Path]:
     """press.png, sites.png, sweep.png and sweep.gif; the paths written."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     from PIL import Image
 
     out.mkdir(parents=True, exist_ok=True)
@@ -158,8 +158,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--server", default=None,
                         help="server name (default $ECHOGYM_SERVER or 'default'; started if absent)")
     args = parser.parse_args(argv)
-    import json
-
+    try:
+        pyplot()
+    except ImportError as exc:
+        print(f"echogym ultrasound: {exc}", file=sys.stderr)
+        return 2
     ultrasound = json.loads(args.config)
     client = echogym.connect(args.server, autostart=True)
     started = time.perf_counter()
