@@ -19,14 +19,10 @@ def main(argv: list[str] | None = None) -> int:
     """Run the CLI; the exit code."""
     parser = build_parser()
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
-    from echogym.train.ppo import (
-        PPOTrainer,
-        build_networks,
-        evaluate,
-        load_checkpoint,
-        load_policy,
-        zero_policy,
-    )
+    from echogym.train.checkpoint import load_checkpoint, load_policy
+    from echogym.train.evaluation import evaluate
+    from echogym.train.networks import build_networks, zero_policy
+    from echogym.train.ppo import PPOTrainer
 
     if args.resume:
         saved = TrainConfig.from_dict(load_checkpoint(args.resume)["config"])

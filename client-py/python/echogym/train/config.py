@@ -113,7 +113,7 @@ HELP = {
     "ray_servers": "collect through Ray: one collector per named server, on that server's node",
     "ray_address": "Ray cluster to join (auto, HOST:6379); default: start a local cluster",
     "ray_cpus_per_collector": "Ray CPUs each remote collector asks for",
-    "progress": "show the progress bar",
+    "progress": "show the progress bar (drawn only when stderr is a terminal)",
     "threads": "torch threads of the trainer process",
 }
 

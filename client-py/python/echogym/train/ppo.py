@@ -27,22 +27,21 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 from tensordict import TensorDict, TensorDictBase
-from tensordict.nn import TensorDictModule
 from torch import nn
 from torchrl.collectors import Collector, MultiSyncCollector
-from torchrl.data import Bounded
-from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.objectives import ClipPPOLoss
 from torchrl.objectives.value import GAE
 
-from echogym._native import resolve_spec
+from echogym._progress import progress_bar
 from echogym.client import connect
+from echogym.train.checkpoint import load_checkpoint
 from echogym.train.config import TrainConfig
-from echogym.train.envs import build_env, default_obs_keys, env_factory, obs_size
-from echogym.train.models import make_actor, make_critic, norms
+from echogym.train.envs import default_obs_keys, env_factory
+from echogym.train.evaluation import evaluate
+from echogym.train.models import norms
+from echogym.train.networks import build_networks
 
 #: Builds the collector: (policy, frames_per_batch, total_frames) → an iterable collector.
 CollectorBuilder = Callable[[nn.Module, int, int], Any]
@@ -53,142 +52,6 @@ def resolve_device(name: str) -> torch.device:
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
     return torch.device(name)
-
-
-def _action_spec(cfg: TrainConfig) -> Bounded:
-    spec = json.loads(resolve_spec(cfg.env_id, json.dumps(cfg.env_config)))["action"]
-    return Bounded(
-        low=torch.tensor(spec["low"], dtype=torch.float32),
-        high=torch.tensor(spec["high"], dtype=torch.float32),
-        shape=(spec["size"],),
-        dtype=torch.float32,
-    )
-
-
-def build_networks(cfg: TrainConfig) -> tuple[nn.Module, nn.Module]:
-    """The actor and critic of ``cfg`` (on CPU, seeded by ``cfg.seed``)."""
-    torch.manual_seed(cfg.seed)
-    keys = cfg.obs_keys or default_obs_keys(cfg.env_id, cfg.env_config)
-    size = obs_size(cfg.env_id, cfg.env_config, keys)
-    actor = make_actor(size, _action_spec(cfg), cfg.hidden, cfg.activation, cfg.log_std_init)
-    critic = make_critic(size, cfg.hidden, cfg.activation)
-    return actor, critic
-
-
-def latest_checkpoint(path: str | os.PathLike[str]) -> Path:
-    """``path`` itself if a file, else ``path/latest.pt``."""
-    p = Path(path)
-    if p.is_dir():
-        p = p / "latest.pt"
-    if not p.is_file():
-        raise FileNotFoundError(f"no checkpoint at {p}")
-    return p
-
-
-def load_checkpoint(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """A checkpoint written by :class:`PPOTrainer` (a plain dict of tensors and numbers)."""
-    return torch.load(latest_checkpoint(path), map_location="cpu", weights_only=False)
-
-
-def load_policy(path: str | os.PathLike[str]) -> tuple[nn.Module, TrainConfig]:
-    """The trained actor of a checkpoint (CPU) and the run's config."""
-    ckpt = load_checkpoint(path)
-    cfg = TrainConfig.from_dict(ckpt["config"])
-    actor, _ = build_networks(cfg)
-    actor.load_state_dict(ckpt["actor"])
-    return actor, cfg
-
-
-class _ZeroPolicy(TensorDictModule):
-    """Always the zero action (the ``zero`` baseline)."""
-
-    def __init__(self, action_size: int) -> None:
-        super().__init__(nn.Identity(), in_keys=["observation"], out_keys=["action"])
-        self.action_size = action_size
-
-    def forward(self, tensordict: TensorDictBase, *args: Any, **kwargs: Any) -> TensorDictBase:
-        obs = tensordict.get("observation")
-        tensordict.set("action", torch.zeros(*obs.shape[:-1], self.action_size))
-        return tensordict
-
-
-def zero_policy(cfg: TrainConfig) -> nn.Module:
-    """A policy that always sends the zero action."""
-    return _ZeroPolicy(_action_spec(cfg).shape[-1])
-
-
-def evaluate(
-    policy: nn.Module,
-    cfg: TrainConfig,
-    episodes: int | None = None,
-    num_envs: int | None = None,
-    seed: int | None = None,
-) -> dict[str, Any]:
-    """Run ``episodes`` episodes with deterministic actions; per-episode and mean metrics.
-
-    Every env runs the same number of episodes (so short episodes are not over-counted).
-    Metrics: ``return``, ``length``, ``success`` (``is_success`` at the episode's end) and,
-    for envs with a contact force, ``contact_share`` (steps in contact / horizon) and
-    ``force_band_share`` (steps in contact with the force within ±1 N of the target /
-    horizon: the share of the sweep spent holding the force).
-    """
-    episodes = episodes or cfg.eval_episodes
-    num_envs = min(num_envs or cfg.eval_envs, episodes)
-    per_env = math.ceil(episodes / num_envs)
-    keys = cfg.obs_keys or default_obs_keys(cfg.env_id, cfg.env_config)
-    resolved = json.loads(resolve_spec(cfg.env_id, json.dumps(cfg.env_config)))["config"]
-    horizon = int(resolved["horizon"])
-    target_force = float(resolved.get("task", {}).get("target_force", 5.0))
-    # With Ray the driver evaluates on `server`, by default the first Ray server (which
-    # must then run on the driver's node).
-    server = cfg.server or (cfg.ray_servers[0] if cfg.ray_servers else None)
-    env = build_env(cfg.env_id, num_envs, cfg.env_config, keys, server, copy_observations=True)
-    policy = policy.to("cpu")
-    records: list[dict[str, float]] = []
-    try:
-        env.set_seed(cfg.seed + 1_000_003 if seed is None else seed)
-        td = env.reset()
-        counts = np.zeros(num_envs, dtype=int)
-        in_contact = np.zeros(num_envs)
-        in_band = np.zeros(num_envs)
-        has_force = "contact_force" in td.keys()
-        while (counts < per_env).any():
-            with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
-                td = policy(td)
-            td, root = env.step_and_maybe_reset(td)
-            nxt = td["next"]
-            if has_force:
-                contact = nxt["in_contact"].numpy() > 0.5
-                force_ok = np.abs(nxt["contact_force"].numpy() - target_force) <= 1.0
-                in_contact += contact
-                in_band += contact & force_ok
-            done = nxt["done"].reshape(num_envs).numpy()
-            for i in np.flatnonzero(done):
-                if counts[i] < per_env:
-                    record = {
-                        "return": float(nxt["episode_reward"][i, 0]),
-                        "length": int(nxt["step_count"][i, 0]),
-                    }
-                    if "is_success" in nxt.keys():
-                        record["success"] = float(nxt["is_success"][i] > 0.5)
-                    if has_force:
-                        record["contact_share"] = in_contact[i] / horizon
-                        record["force_band_share"] = in_band[i] / horizon
-                    records.append(record)
-                    counts[i] += 1
-                in_contact[i] = 0.0
-                in_band[i] = 0.0
-            td = root
-    finally:
-        env.close()
-    records = records[:episodes]
-    summary: dict[str, Any] = {"episodes": len(records)}
-    for key in records[0]:
-        values = np.array([r[key] for r in records], dtype=float)
-        summary[key + "_mean"] = float(values.mean())
-        summary[key + "_std"] = float(values.std())
-    summary["per_episode"] = records
-    return summary
 
 
 #: Columns of ``progress.csv`` (a value missing from an iteration is left empty).
@@ -425,8 +288,6 @@ class PPOTrainer:
 
     def train(self) -> dict[str, Any]:
         """Collect and update until ``total_frames``; evaluate; the final summary."""
-        from tqdm import tqdm
-
         cfg = self.cfg
         self.logdir.mkdir(parents=True, exist_ok=True)
         (self.logdir / "config.json").write_text(cfg.to_json())
@@ -444,8 +305,8 @@ class PPOTrainer:
         collector = self.collector_builder(policy, cfg.frames_per_batch, remaining)
         collector.set_seed(cfg.seed + self.iteration * 7919)
         collector.update_policy_weights_(TensorDict.from_module(self.actor).data.cpu())
-        bar = tqdm(total=cfg.total_frames, initial=self.frames, unit="step",
-                   disable=not cfg.progress, dynamic_ncols=True, smoothing=0.1)
+        bar = progress_bar(cfg.total_frames, enabled=cfg.progress, initial=self.frames,
+                           unit="step", smoothing=0.1)
         start = time.monotonic()
         next_ckpt = (self.frames // cfg.checkpoint_every + 1) * cfg.checkpoint_every
         next_eval = (self.frames // cfg.eval_every + 1) * cfg.eval_every if cfg.eval_every else None

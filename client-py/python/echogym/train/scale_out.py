@@ -33,7 +33,10 @@ from typing import Any
 import torch
 from torch import nn
 
-from echogym.train.envs import env_factory
+from echogym.train.config import TrainConfig
+from echogym.train.envs import default_obs_keys, env_factory
+from echogym.train.networks import build_networks
+from echogym.train.timing import timed_collection
 
 #: Environment variables forwarded to Ray workers of a local cluster (the iceoryx2
 #: location must match the servers').
@@ -146,10 +149,6 @@ def measure(
 ) -> dict[str, Any]:
     """Collection throughput (env-steps/s) of a ``RayCollector`` over ``servers`` with
     the default PPO actor (inference included, no training)."""
-    from echogym.train.config import TrainConfig
-    from echogym.train.envs import default_obs_keys
-    from echogym.train.ppo import build_networks
-
     cfg = TrainConfig(env_id=env_id, env_config=env_config)
     actor, _ = build_networks(cfg)
     collector = ray_collector(
@@ -165,8 +164,6 @@ def measure(
         address=address,
         cpus_per_collector=cpus_per_collector,
     )
-    from echogym.train.throughput import timed_collection
-
     frames, elapsed = timed_collection(collector, warmup)
     return {"servers": list(servers), "frames": frames, "seconds": elapsed,
             "env_steps_per_s": frames / elapsed}

@@ -24,12 +24,17 @@ from typing import Any
 import numpy as np
 import torch
 
+from echogym.client import connect
+from echogym.gym_vector import EchoVectorEnv
+from echogym.train.config import TrainConfig
+from echogym.train.envs import default_obs_keys, env_factory
+from echogym.train.networks import build_networks
+from echogym.train.timing import timed_collection
+
 
 def raw_rate(env_id: str, num_envs: int, config: dict[str, Any], server: str,
              seconds: float) -> float:
     """Env-steps/s of one vector env of ``num_envs`` envs, random actions in ±0.3."""
-    from echogym.gym_vector import EchoVectorEnv
-
     env = EchoVectorEnv(env_id, num_envs, server=server, **config)
     rng = np.random.default_rng(0)
     actions = [
@@ -54,10 +59,6 @@ def collector_rate(env_id: str, workers: int, envs_per_worker: int, config: dict
     """Env-steps/s of a ``MultiSyncCollector`` driven by the default PPO actor."""
     from torchrl.collectors import MultiSyncCollector
 
-    from echogym.train.config import TrainConfig
-    from echogym.train.envs import default_obs_keys, env_factory
-    from echogym.train.ppo import build_networks
-
     cfg = TrainConfig(env_id=env_id, env_config=config)
     actor, _ = build_networks(cfg)
     make_env = env_factory(env_id, envs_per_worker, config, default_obs_keys(env_id, config),
@@ -68,23 +69,6 @@ def collector_rate(env_id: str, workers: int, envs_per_worker: int, config: dict
                                    total_frames=frames * (batches + warmup), device="cpu")
     count, elapsed = timed_collection(collector, warmup)
     return count / elapsed
-
-
-def timed_collection(collector: Any, warmup: int) -> tuple[int, float]:
-    """Run `collector` to its end: the frames of the batches after the first `warmup`
-    and the seconds they took (timed from the end of the last warm-up batch). Shuts the
-    collector down."""
-    frames = 0
-    start = 0.0
-    try:
-        for i, data in enumerate(collector):
-            if i == warmup - 1:
-                start = time.monotonic()
-            elif i >= warmup:
-                frames += data.numel()
-        return frames, time.monotonic() - start
-    finally:
-        collector.shutdown()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -114,8 +98,6 @@ def main(argv: list[str] | None = None) -> int:
              "--threads", str(args.threads), "--exit-with-parent", str(os.getpid())],
             stdin=subprocess.DEVNULL,
         )
-        from echogym.client import connect
-
         deadline = time.monotonic() + 30
         while True:
             try:
