@@ -1,6 +1,7 @@
 """stable-baselines3 on echogym: the `SB3VecEnv` adapter keeps SB3's conventions (ended
 envs reset within the step, their last observation in `terminal_observation`, time-outs
-flagged `TimeLimit.truncated` so SB3 bootstraps them), and the documented example
+flagged `TimeLimit.truncated` so SB3 bootstraps them), passes camera images in a `Dict`
+observation that `MultiInputPolicy` trains on, and the documented example
 (`examples/sb3_ppo.py`) trains PPO on a server-side vector env, saves the model and
 evaluates it, giving its lease back."""
 
@@ -12,12 +13,13 @@ import sys
 import time
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from echogym.train.sb3 import SB3VecEnv  # noqa: E402
+from echogym.sb3 import SB3VecEnv  # noqa: E402
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "sb3_ppo.py"
 
@@ -42,6 +44,43 @@ def test_adapter_follows_sb3_conventions(server):
     assert (obs[:, 0] == 0.0).all()
     venv.close()
     assert server.status()["leases"] == []
+
+
+def test_images_arrive_in_a_dict_and_multi_input_ppo_learns(server):
+    from stable_baselines3 import PPO
+
+    venv = SB3VecEnv("echogym/PushCube-v0", 2, horizon=4,
+                     cameras=[{"name": "front", "width": 64, "height": 64}])
+    space = venv.observation_space
+    assert isinstance(space, gym.spaces.Dict)
+    assert space["front_rgb"].shape == (64, 64, 3) and space["front_rgb"].dtype == np.uint8
+    assert space["front_depth"].shape == (64, 64, 1)  # 2-D fields get a channel axis
+    assert space["joint_pos"].shape == (7,)
+    assert set(venv.obs_keys) == set(space.spaces)  # nothing dropped
+    obs = venv.reset()
+    assert obs["front_rgb"].shape == (2, 64, 64, 3) and obs["front_rgb"].any()
+    assert space.contains({k: v[0] for k, v in obs.items()})
+    actions = np.zeros((2, venv.action_space.shape[0]), np.float32)
+    for _ in range(4):
+        obs, _, done, infos = venv.step(actions)
+    assert done.all()
+    final = infos[0]["terminal_observation"]
+    assert isinstance(final, dict) and final["front_rgb"].shape == (64, 64, 3)
+    model = PPO("MultiInputPolicy", venv, n_steps=8, batch_size=8, n_epochs=1, seed=0,
+                device="cpu")
+    model.learn(total_timesteps=16)
+    assert model.num_timesteps == 16
+    action, _ = model.predict(venv.reset(), deterministic=True)
+    assert action.shape == (2, venv.action_space.shape[0])
+    venv.close()
+    assert server.status()["leases"] == []
+
+
+def test_vectors_only_stay_one_flat_box(server):
+    venv = SB3VecEnv("echogym/PushCube-v0", 2, obs_keys=["joint_pos", "task_errors"])
+    assert venv.observation_space.shape == (7 + 12,)
+    assert venv.reset().shape == (2, 19)
+    venv.close()
 
 
 def test_sb3_example_trains_and_evaluates(server, tmp_path):
