@@ -1,5 +1,8 @@
 """The single-env gymnasium adapter against a real server: `check_env`, data integrity,
-typed errors for bad actions and configs (the env keeps working), seeding, closing."""
+typed errors for bad actions and configs (the env keeps working), seeding, closing, and
+the episode length on the registered specs and through `max_episode_steps`."""
+
+import json
 
 import gymnasium as gym
 import numpy as np
@@ -7,6 +10,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import echogym
+from echogym import _native
 
 
 def test_check_env_passes(server):
@@ -35,9 +39,10 @@ def test_bad_actions_raise_typed_errors_and_lose_nothing(server):
     env = gym.make("echogym/Null-v0").unwrapped
     env.reset(seed=0)
     env.step(np.zeros(7, np.float32))
-    with pytest.raises(echogym.InvalidActionError, match=r"shape \(7,\)"):
+    # The lease checks every action, as a batch of one env.
+    with pytest.raises(echogym.InvalidActionError, match=r"shape \(1, 7\), got \[1, 6\]"):
         env.step(np.zeros(6, np.float32))
-    with pytest.raises(echogym.InvalidActionError, match="dtype int64"):
+    with pytest.raises(echogym.InvalidActionError, match="float32 .* got int64"):
         env.step(np.zeros(7, np.int64))
     nan = np.zeros(7, np.float32)
     nan[2] = np.nan
@@ -93,3 +98,36 @@ def test_version_mismatch_is_a_typed_error(server):
 def test_connect_without_server_names_the_problem(ipc):
     with pytest.raises(echogym.ServerNotRunningError, match="echogym serve --name nobody"):
         echogym.connect("nobody")
+
+
+def test_registered_specs_carry_the_episode_length():
+    for env_id, _ in echogym.registered_envs():
+        default = json.loads(_native.resolve_spec(env_id, "{}"))["max_episode_steps"]
+        assert gym.spec(env_id).max_episode_steps == default > 0, env_id
+    assert gym.spec("echogym/PushCube-v0").max_episode_steps == 200
+
+
+def test_max_episode_steps_sets_the_servers_episode_length(server):
+    env = echogym.EchoEnv("echogym/Null-v0", max_episode_steps=3)
+    assert env.echo_spec["max_episode_steps"] == 3
+    env.reset(seed=0)
+    flags = [env.step(np.zeros(7, np.float32))[3] for _ in range(3)]
+    assert flags == [False, False, True]
+    env.close()
+    # The physics envs' key is `horizon`; given explicitly, it wins.
+    env = echogym.EchoEnv("echogym/PushCube-v0", max_episode_steps=7)
+    assert env.echo_spec["max_episode_steps"] == 7
+    env.close()
+    env = echogym.EchoEnv("echogym/PushCube-v0", max_episode_steps=7, horizon=9)
+    assert env.echo_spec["max_episode_steps"] == 9
+    env.close()
+
+
+def test_gym_make_limits_episodes_at_the_registered_length(server):
+    env = gym.make("echogym/Null-v0")
+    assert env.spec.max_episode_steps == 1000
+    env.close()
+    env = gym.make("echogym/Null-v0", max_episode_steps=2)  # gymnasium's TimeLimit
+    env.reset(seed=0)
+    assert [env.step(np.zeros(7, np.float32))[3] for _ in range(2)] == [False, True]
+    env.close()

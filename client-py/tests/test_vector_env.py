@@ -1,6 +1,7 @@
 """The gymnasium vector adapter: one shared-memory exchange per batch, read-only views
 onto the server's sample (zero copy), same-step autoreset with final observations, and
-disabled autoreset with reset masks."""
+disabled autoreset with reset masks; `make_vec` hands the registered episode length to
+the server under the env's own key."""
 
 import gymnasium as gym
 import numpy as np
@@ -93,4 +94,23 @@ def test_wrong_batch_shape_is_refused(server):
     with pytest.raises(echogym.InvalidActionError, match=r"\(4, 7\)"):
         envs.step(np.zeros((3, 7), np.float32))
     envs.step(np.zeros((4, 7), np.float32))
+    envs.close()
+
+
+def test_make_vec_sets_the_episode_length_under_the_envs_key(server):
+    def pushcube(**kwargs):
+        return gym.make_vec("echogym/PushCube-v0", num_envs=2,
+                            vectorization_mode="vector_entry_point", **kwargs)
+
+    envs = pushcube()  # make_vec passes the registered max_episode_steps (200)
+    assert envs.echo_spec["max_episode_steps"] == 200
+    envs.close()
+    envs = pushcube(max_episode_steps=3)  # as `horizon`, PushCube's key
+    assert envs.echo_spec["max_episode_steps"] == 3
+    envs.reset(seed=0)
+    truncated = [envs.step(np.zeros((2, 6), np.float32))[3].copy() for _ in range(3)]
+    assert not truncated[1].any() and truncated[2].all()
+    envs.close()
+    envs = pushcube(horizon=5)  # the env's own key wins over the registered default
+    assert envs.echo_spec["max_episode_steps"] == 5
     envs.close()

@@ -7,7 +7,11 @@ Import this package to register every echogym env with gymnasium::
     envs = gymnasium.make_vec("echogym/Null-v0", num_envs=64,
                               vectorization_mode="vector_entry_point")
 
-For torchrl use :class:`echogym.torchrl.EchoEnv` (imported lazily: torch is optional).
+Each id is registered with its default episode length as ``max_episode_steps``
+(:mod:`echogym.episode`). For torchrl use :class:`echogym.torchrl.EchoEnv`, for
+stable-baselines3 :class:`echogym.sb3.SB3VecEnv` (import them from their modules: torch is
+optional). The applications (demo, figures, plots, training) are :mod:`echogym.apps` and
+:mod:`echogym.train`; importing ``echogym`` imports neither.
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ import gymnasium
 from echogym._native import PROTOCOL_VERSION, __version__, registered_envs
 from echogym.calibration import load_calibration
 from echogym.client import Client, connect
+from echogym.episode import default_max_episode_steps
 from echogym import errors
 from echogym.errors import *  # noqa: F403 (the exception tree, listed in errors.__all__)
 from echogym.gym_env import EchoEnv
@@ -31,6 +36,7 @@ def _register_all() -> None:
             id=env_id,
             entry_point="echogym.gym_env:EchoEnv",
             vector_entry_point="echogym.gym_vector:EchoVectorEnv",
+            max_episode_steps=default_max_episode_steps(env_id),
             kwargs={"env_id": env_id},
         )
 

@@ -89,19 +89,14 @@ def connect(
     return Client(native)
 
 
-def as_actions(action: Any, shape: tuple[int, ...]) -> np.ndarray:
-    """``action`` as a C-contiguous float32 array of ``shape``.
+def as_actions(action: Any) -> np.ndarray:
+    """``action`` ready for :meth:`NativeLease.step`: floating arrays (any width, lists of
+    floats) as C-contiguous float32, anything else unchanged.
 
-    Floating arrays of any width are cast; anything else (ints, bools, objects, wrong
-    shape) raises :class:`echogym.InvalidActionError` naming the problem.
+    This converts, it does not check: the lease is the one check of dtype and shape (and
+    of finite values), raising :class:`echogym.InvalidActionError` naming what it got.
     """
-    from echogym.errors import InvalidActionError
-
     array = np.asarray(action)
-    if array.dtype.kind != "f":
-        raise InvalidActionError(
-            f"actions must be floating point (float32), got dtype {array.dtype}"
-        )
-    if array.shape != shape:
-        raise InvalidActionError(f"actions must have shape {shape}, got {array.shape}")
-    return np.ascontiguousarray(array, dtype=np.float32)
+    if array.dtype.kind == "f":
+        return np.ascontiguousarray(array, dtype=np.float32)
+    return array

@@ -15,6 +15,7 @@ import numpy as np
 
 from echogym import spaces as echo_spaces
 from echogym.client import as_actions, connect
+from echogym.episode import with_episode_length
 
 
 class EchoEnv(gym.Env):
@@ -26,6 +27,9 @@ class EchoEnv(gym.Env):
         autostart: Start a private server if none is running (default true).
         render_mode: ``None`` or ``"rgb_array"`` (then :meth:`render` returns the first
             configured camera's RGB image; configure one with ``cameras=[...]``).
+        max_episode_steps: Episode length [steps], passed to the server as the env's
+            length key (``horizon`` or ``max_episode_steps``) unless ``config`` sets
+            that key; default the env's (see :mod:`echogym.episode`).
         **config: Env config; unknown keys raise :class:`echogym.InvalidConfigError`.
     """
 
@@ -38,12 +42,14 @@ class EchoEnv(gym.Env):
         server: str | None = None,
         autostart: bool = True,
         render_mode: str | None = None,
+        max_episode_steps: int | None = None,
         **config: Any,
     ) -> None:
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode {render_mode!r} is not supported by {env_id}")
         self.render_mode = render_mode
         self._client = connect(server, autostart=autostart)
+        config = with_episode_length(env_id, config, max_episode_steps)
         self._lease = self._client.attach(env_id, 1, config, "disabled")
         self.echo_spec: dict[str, Any] = json.loads(self._lease.spec_json)
         rgb = [f["name"] for f in self.echo_spec["observation"] if f["name"].endswith("_rgb")]
@@ -54,7 +60,6 @@ class EchoEnv(gym.Env):
         self._last_obs: Any = None
         self.observation_space = echo_spaces.observation_space(self.echo_spec)
         self.action_space = echo_spaces.action_space(self.echo_spec)
-        self._action_shape = (1, self.echo_spec["action"]["size"])
         self._info_keys: list[str] = self.echo_spec["info_keys"]
 
     def _obs(self, fields: tuple[np.ndarray, ...]) -> Any:
@@ -73,9 +78,12 @@ class EchoEnv(gym.Env):
         return self._last_obs, self._info(info)
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
-        """Advance one step; ``action`` must be a float array of the action space's shape."""
-        actions = as_actions(action, self._action_shape[1:]).reshape(self._action_shape)
-        fields, reward, terminated, truncated, info, _, _ = self._lease.step(actions)
+        """Advance one step; ``action`` must be a float array of the action space's shape
+        (the lease refuses anything else with :class:`echogym.InvalidActionError`, as a
+        batch of one: shape ``(1, action_size)``)."""
+        fields, reward, terminated, truncated, info, _, _ = self._lease.step(
+            as_actions(action)[np.newaxis]
+        )
         self._last_obs = self._obs(fields)
         return (
             self._last_obs,

@@ -16,6 +16,7 @@ from gymnasium.vector.utils import batch_space
 
 from echogym import spaces as echo_spaces
 from echogym.client import as_actions, connect
+from echogym.episode import with_episode_length
 
 _MODES = {"same_step": AutoresetMode.SAME_STEP, "disabled": AutoresetMode.DISABLED}
 
@@ -31,6 +32,9 @@ class EchoVectorEnv(VectorEnv):
         autoreset_mode: ``"same_step"`` (default: ended envs restart within the step;
             the last observation is in ``infos["final_obs"]``) or ``"disabled"``
             (reset ended envs with ``reset(options={"reset_mask": mask})``).
+        max_episode_steps: Episode length [steps], passed to the server as the env's
+            length key (``horizon`` or ``max_episode_steps``) unless ``config`` sets
+            that key; default the env's (see :mod:`echogym.episode`).
         **config: Env config; unknown keys raise :class:`echogym.InvalidConfigError`.
     """
 
@@ -43,6 +47,7 @@ class EchoVectorEnv(VectorEnv):
         autostart: bool = True,
         autoreset_mode: str | AutoresetMode = "same_step",
         render_mode: str | None = None,
+        max_episode_steps: int | None = None,
         **config: Any,
     ) -> None:
         if render_mode is not None:
@@ -54,6 +59,7 @@ class EchoVectorEnv(VectorEnv):
         self.metadata = {"autoreset_mode": self.autoreset_mode, "render_modes": []}
         self.render_mode = None
         self.num_envs = num_envs
+        config = with_episode_length(env_id, config, max_episode_steps)
         self._client = connect(server, autostart=autostart)
         self._lease = self._client.attach(env_id, num_envs, config, mode)
         self.echo_spec: dict[str, Any] = json.loads(self._lease.spec_json)
@@ -61,7 +67,6 @@ class EchoVectorEnv(VectorEnv):
         self.single_action_space = echo_spaces.action_space(self.echo_spec)
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
-        self._action_shape = (num_envs, self.echo_spec["action"]["size"])
         self._info_keys: list[str] = self.echo_spec["info_keys"]
         self._all = np.ones(num_envs, dtype=bool)
 
@@ -97,10 +102,10 @@ class EchoVectorEnv(VectorEnv):
         return echo_spaces.obs_from_fields(self.echo_spec, fields), self._infos(info)
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        """Step every env with ``actions`` (shape ``(num_envs, action_size)``)."""
-        actions = as_actions(actions, self._action_shape)
+        """Step every env with ``actions`` (shape ``(num_envs, action_size)``, floating
+        point; the lease refuses anything else with :class:`echogym.InvalidActionError`)."""
         fields, reward, terminated, truncated, info, final_fields, final_info = self._lease.step(
-            actions
+            as_actions(actions)
         )
         infos = self._infos(info)
         if final_fields is not None:
