@@ -19,6 +19,7 @@
 //! 6. [`report`]: test before/after, intervals, geometry, verdict, replays.
 
 pub mod baseline;
+pub mod decision;
 pub mod effects;
 pub mod features;
 pub mod fit;
@@ -138,9 +139,9 @@ pub struct Outcome {
     /// Where the baseline misses.
     pub mismatch: mismatch::Mismatch,
     /// Accepted effects: (name, params, evidence, validation RMSE after the surrogate).
-    pub accepted: Vec<report::Accepted>,
+    pub accepted: Vec<decision::Accepted>,
     /// Rejected candidates with reasons.
-    pub rejected: Vec<report::Rejected>,
+    pub rejected: Vec<decision::Rejected>,
     /// Whether something the catalogue lacks remains, and where.
     pub verdict: unexplained::Verdict,
     /// The seed's regression per site.

@@ -7,6 +7,7 @@ pub mod arena;
 pub mod calibration_press;
 mod config;
 mod env;
+mod factory;
 mod null;
 pub mod push_cube;
 mod registry;
@@ -14,5 +15,6 @@ pub mod ultrasound_scan;
 
 pub use config::{EnvConfigError, parse_config};
 pub use env::{Env, EnvOutput, Transition};
+pub use factory::EnvFactory;
 pub use null::{NULL_ENV_ID, NullConfig, NullEnvFactory};
-pub use registry::{EnvFactory, EnvRegistry, UnknownEnv};
+pub use registry::{EnvRegistry, UnknownEnv};

@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use super::config::{EnvConfigError, check_range, parse_config};
 use super::env::{Env, EnvOutput, Transition};
-use super::registry::EnvFactory;
+use super::factory::EnvFactory;
 
 /// The registered id.
 pub const NULL_ENV_ID: &str = "echogym/Null-v0";

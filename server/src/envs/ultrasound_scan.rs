@@ -600,9 +600,9 @@ pub(crate) fn place_arm(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::envs::EnvFactory;
     use crate::envs::arena::{ArenaEnv, ArenaFactory};
     use crate::envs::env::{Env, EnvOutput};
-    use crate::envs::registry::EnvFactory;
 
     fn config(json: serde_json::Value) -> serde_json::Map<String, serde_json::Value> {
         json.as_object().unwrap().clone()

@@ -9,6 +9,7 @@
 
 use rapier3d::prelude::*;
 
+use super::vec3::{cross, normalize};
 use super::world::{World, vec3};
 
 /// A pinhole camera.
@@ -28,23 +29,6 @@ pub struct Camera {
     pub height: usize,
     /// Depth reported where no collider is hit, and the ray length [m].
     pub far: f64,
-}
-
-fn normalize(v: [f64; 3]) -> [f64; 3] {
-    let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    if n > 0.0 {
-        [v[0] / n, v[1] / n, v[2] / n]
-    } else {
-        v
-    }
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
 }
 
 impl Camera {

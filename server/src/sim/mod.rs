@@ -14,4 +14,5 @@ pub mod robot;
 pub mod scene;
 pub mod torso;
 pub mod ultrasound;
+mod vec3;
 pub mod world;

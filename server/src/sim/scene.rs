@@ -11,9 +11,8 @@ use serde::{Deserialize, Serialize};
 use super::ft_sensor::{FtSensor, FtSensorParams};
 use super::probe::{ProbeParamError, ProbeParams};
 use super::robot::{Arm, ArmError, RobotModel, UrdfError, load_urdf, panda, ur5e};
-use super::torso::{
-    ContactWrench, ProbeKinematics, Torso, TorsoParamError, TorsoParams, add, cross, scale, sub,
-};
+use super::torso::{ContactWrench, ProbeKinematics, Torso, TorsoParamError, TorsoParams};
+use super::vec3::{add, cross, scale, sub};
 use super::world::{World, WorldParams, arr3, groups, vec3};
 
 /// Which arm.

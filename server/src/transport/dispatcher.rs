@@ -12,8 +12,6 @@
 //! Housekeeping (every `housekeeping` interval, default 100 ms) reclaims leases of dead
 //! clients, reacts to shutdown requests and to the death of a parent process.
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use echogym_protocol::{
@@ -28,38 +26,12 @@ use rayon::prelude::*;
 
 use super::error::StartError;
 use super::lease::Lease;
-use super::services::{
-    Access, ControlService, EventService, MAX_CLIENTS, ServiceError, control_service, event_service,
-};
+use super::shutdown::Shutdown;
 use crate::envs::EnvRegistry;
 use crate::pool::WorkerPool;
-
-/// A shutdown request shared between signal handlers, the `stop` control message and
-/// whoever embeds the server (tests).
-#[derive(Debug, Clone, Default)]
-pub struct Shutdown(Arc<AtomicBool>);
-
-impl Shutdown {
-    /// A token nobody has triggered yet.
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// Ask the server to stop after the exchange in flight.
-    pub fn request(&self) {
-        self.0.store(true, Ordering::SeqCst);
-    }
-
-    /// Whether a stop was requested.
-    pub fn is_requested(&self) -> bool {
-        self.0.load(Ordering::SeqCst)
-    }
-
-    /// The flag itself (for `signal_hook::flag::register`).
-    pub fn flag(&self) -> Arc<AtomicBool> {
-        self.0.clone()
-    }
-}
+use echogym_protocol::services::{
+    Access, ControlService, EventService, MAX_CLIENTS, ServiceError, control_service, event_service,
+};
 
 /// What the dispatcher needs to know; see `crate::config::ServeConfig` for meanings
 /// and defaults.
@@ -129,7 +101,7 @@ impl Dispatcher {
     ) -> Result<Self, StartError> {
         let names = ServiceNames::new(&options.name)?;
         let iox_config = options.location.iceoryx_config()?;
-        crate::quiet_iceoryx_logs();
+        echogym_protocol::quiet_iceoryx_logs();
         let node_name = format!("echogym-serve-{}-{}", options.name, std::process::id());
         let node = NodeBuilder::new()
             .config(&iox_config)
@@ -221,7 +193,7 @@ impl Dispatcher {
             }
             let idle = now.duration_since(last_work);
             if idle < spin {
-                crate::spin::pause(idle);
+                echogym_protocol::pacing::pause(idle);
                 continue;
             }
             // Drain, poll once more, then block (see the module docs for why this order).

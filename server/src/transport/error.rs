@@ -2,8 +2,8 @@
 
 use echogym_protocol::{InvalidServerName, IpcLocationError};
 
-use super::services::ServiceError;
 use crate::pool::PoolStartError;
+use echogym_protocol::services::ServiceError;
 
 /// A server could not start.
 #[derive(Debug, thiserror::Error)]

@@ -9,10 +9,10 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::sample_mut::SampleMut;
 
-use super::services::{
+use crate::pool::EnvBatch;
+use echogym_protocol::services::{
     Access, ActionService, EventService, ObsService, ServiceError, event_service, lease_channel,
 };
-use crate::pool::EnvBatch;
 
 /// Server-side state of one lease.
 pub(crate) struct Lease {

@@ -10,7 +10,8 @@ mod dispatcher;
 mod error;
 mod lease;
 mod permissions;
-pub(crate) mod services;
+mod shutdown;
 
-pub use dispatcher::{Dispatcher, DispatcherOptions, Shutdown};
+pub use dispatcher::{Dispatcher, DispatcherOptions};
 pub use error::StartError;
+pub use shutdown::Shutdown;

@@ -15,9 +15,9 @@ use super::config::{ArenaConfig, TaskConfig};
 use super::observation::{declare_fields, write_fields};
 use super::randomization::Draw;
 use super::recorder::EpisodeRecorder;
+use crate::envs::EnvFactory;
 use crate::envs::config::{EnvConfigError, parse_config};
 use crate::envs::env::{Env, EnvOutput, Transition};
-use crate::envs::registry::EnvFactory;
 use crate::sim::controller::ArmController;
 use crate::sim::scene::Scene;
 use crate::sim::torso::Breathing;
@@ -123,7 +123,6 @@ pub struct ArenaEnv<T: Task> {
     controller: ArmController,
     task: T,
     rng: Pcg64Mcg,
-    physics_steps: usize,
     recorder: Option<EpisodeRecorder>,
     ultrasound: Option<Ultrasound>,
 }
@@ -137,7 +136,6 @@ impl<T: Task> ArenaEnv<T> {
         // broad phase would be rebuilt from scratch at each episode's first step.
         scene.world_mut().update_queries();
         let controller = ArmController::new(config.controller.clone(), &scene);
-        let physics_steps = config.controller.physics_steps_per_action(scene.dt());
         let recorder = config
             .record
             .as_ref()
@@ -164,7 +162,6 @@ impl<T: Task> ArenaEnv<T> {
             controller,
             task,
             rng: Pcg64Mcg::from_rng(&mut rand::rng()),
-            physics_steps,
             recorder,
             ultrasound,
             config,
@@ -250,15 +247,14 @@ impl<T: Task> Env for ArenaEnv<T> {
     fn step(&mut self, action: &[f32], out: &mut EnvOutput<'_>) -> Transition {
         let action: Vec<f64> = action.iter().map(|&a| f64::from(a)).collect();
         let action = self.task.action(&self.scene, &action);
-        self.controller.set_action(&self.scene, &action);
-        for _ in 0..self.physics_steps {
-            let tau = self.controller.torques(&mut self.scene);
-            self.scene.step(&tau);
-            self.task.after_physics_step(&self.scene);
-            if let Some(recorder) = &mut self.recorder {
-                recorder.sample(&self.scene);
-            }
-        }
+        let (task, recorder) = (&mut self.task, &mut self.recorder);
+        self.controller
+            .act_observed(&mut self.scene, &action, |scene| {
+                task.after_physics_step(scene);
+                if let Some(recorder) = recorder {
+                    recorder.sample(scene);
+                }
+            });
         self.image();
         let mut transition = self.task.evaluate(&self.config, &self.scene, out.info());
         if let (Some(us), Some(c)) = (&self.ultrasound, &self.config.ultrasound) {

@@ -1,12 +1,13 @@
 //! [`Torso`]: the soft torso's state and its step (see the `torso` module docs).
 
-use super::contact::{ContactWrench, ProbeFace, ProbeKinematics, add, cross, scale, sub};
+use super::contact::{ContactWrench, ProbeFace, ProbeKinematics};
 use super::law::{LawContext, LawTerms, LinearSpringDamper, ParticleLaw};
 use super::layout::ShellLayout;
 use super::params::{TorsoParamError, TorsoParams};
 use super::skin::Skin;
 use super::solver::{ContactRow, System, Workspace, conjugate_gradient};
 use super::tissue_laws::{DepthDampingLaw, MaxwellBranch, PowerSpring};
+use crate::sim::vec3::{add, cross, scale, sub};
 
 /// Relative residual at which the implicit solve stops.
 const CG_TOLERANCE: f64 = 1e-6;

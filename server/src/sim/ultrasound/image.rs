@@ -30,6 +30,7 @@ use super::phantom::{Phantom, Segment, SegmentScratch};
 use super::speckle::Speckle;
 use super::tissue::{Tissue, reflection};
 use crate::sim::torso::Torso;
+use crate::sim::vec3::{cross, normalize};
 
 /// Speed of sound the scanner assumes [m/s].
 pub const SCANNER_SPEED: f64 = 1540.0;
@@ -242,19 +243,6 @@ fn tissue_index(t: Tissue) -> u8 {
 /// `exp(−κ·x)` helpers: nepers per metre of two-way amplitude loss at `db_cm_mhz`.
 fn nepers_per_m(db_cm_mhz: f64, f_mhz: f64) -> f64 {
     db_cm_mhz * f_mhz * 2.0 * 100.0 * std::f64::consts::LN_10 / 20.0
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn normalize(v: [f64; 3]) -> [f64; 3] {
-    let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    if n > 0.0 { v.map(|x| x / n) } else { v }
 }
 
 /// A 1-D Gaussian kernel of standard deviation `sigma` samples (`[1]` when tiny).
