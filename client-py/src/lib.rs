@@ -1,9 +1,9 @@
 //! `echogym._native`: the Python extension over echogym's Rust client.
 //!
-//! Thin by design: [`client::NativeClient`] and [`lease::NativeLease`] wrap
-//! `echogym_client`, [`views`] turns the server's shared-memory observation sample into
-//! read-only numpy arrays without copying, [`errors`] defines the exception tree and
-//! [`cli_main`] runs the `echogym` command line in-process (used by the console script and
+//! Thin by design: `client::NativeClient` and `lease::NativeLease` wrap
+//! `echogym_client`, `views` turns the server's shared-memory observation sample into
+//! read-only numpy arrays without copying, `errors` defines the exception tree and
+//! `cli_main` runs the `echogym` command line in-process (used by the console script and
 //! by auto-started private servers).
 
 mod client;

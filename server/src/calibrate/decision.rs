@@ -14,7 +14,7 @@ pub struct Accepted {
     pub params: serde_json::Map<String, serde_json::Value>,
     /// Why it was accepted.
     pub evidence: String,
-    /// Held-out RMSE with its signature added [N].
+    /// Held-out RMSE with its signature added \[N\].
     pub heldout_rmse_n: f64,
     /// Relative validation RMSE reduction of its signature.
     #[serde(skip)]

@@ -132,7 +132,7 @@ pub struct Outcome {
     pub series: Vec<Series>,
     /// Calibrated prediction per recording.
     pub calibrated_fz: Vec<Vec<f64>>,
-    /// Noise floor [N].
+    /// Noise floor \[N\].
     pub noise: f64,
     /// How the noise floor was measured.
     pub noise_source: noise::NoiseSource,

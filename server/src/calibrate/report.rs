@@ -92,7 +92,7 @@ fn report_context<'a>(o: &Outcome, site_stiffness: &'a [(String, f64)]) -> Repor
     }
 }
 
-/// RMSE before (baseline) and after (calibrated) over each set of recordings [N].
+/// RMSE before (baseline) and after (calibrated) over each set of recordings \[N\].
 #[derive(Debug, Clone, Copy)]
 struct Figures {
     train: [f64; 2],

@@ -43,7 +43,7 @@ pub struct Inputs<'a> {
     pub series: &'a [Series],
     /// The baseline's predictions.
     pub predictions: &'a [replay::Prediction],
-    /// Noise floor [N].
+    /// Noise floor \[N\].
     pub noise: f64,
     /// Contact stiffness per unit of the model's stiffness.
     pub k_per_unit: f64,
@@ -286,7 +286,7 @@ struct Trial {
     model: Model,
     diagnostics: FitDiagnostics,
     predictions: Vec<replay::Prediction>,
-    /// Validation RMSE before and after, in the effect's channel [N].
+    /// Validation RMSE before and after, in the effect's channel \[N\].
     before: f64,
     after: f64,
 }

@@ -3,7 +3,7 @@
 //! scenes, so a 64×64 depth image costs ≈ 0.15 ms).
 //!
 //! Pinhole model like MuJoCo's: vertical field of view `fovy`, square pixels, image row 0
-//! at the top. Depth is the distance along the optical axis [m] (MuJoCo's convention),
+//! at the top. Depth is the distance along the optical axis \[m\] (MuJoCo's convention),
 //! `far` where nothing is hit. RGB shades each collider's flat colour with a headlight
 //! Lambert term (`0.35 + 0.65·|n·d|`), enough to read shape and contact.
 
@@ -21,13 +21,13 @@ pub struct Camera {
     pub forward: [f64; 3],
     /// Unit image-up direction (world), orthogonal to `forward`.
     pub up: [f64; 3],
-    /// Vertical field of view [deg].
+    /// Vertical field of view \[deg\].
     pub fovy_deg: f64,
-    /// Image width [px].
+    /// Image width \[px\].
     pub width: usize,
-    /// Image height [px].
+    /// Image height \[px\].
     pub height: usize,
-    /// Depth reported where no collider is hit, and the ray length [m].
+    /// Depth reported where no collider is hit, and the ray length \[m\].
     pub far: f64,
 }
 

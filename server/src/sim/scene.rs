@@ -47,12 +47,12 @@ pub struct SceneParams {
     /// Load the arm from this URDF instead of `robot` (serial chains; see
     /// [`super::robot::load_urdf`]).
     pub robot_urdf: Option<std::path::PathBuf>,
-    /// World position of the robot base [m]. Default (-0.5, 0, 0.8): on the table,
+    /// World position of the robot base \[m\]. Default (-0.5, 0, 0.8): on the table,
     /// half a metre from the torso's centre, within both arms' reach.
     pub robot_base: [f64; 3],
-    /// Rotation of the base about world z [rad]. Default 0 (facing +x, the torso).
+    /// Rotation of the base about world z \[rad\]. Default 0 (facing +x, the torso).
     pub robot_base_yaw: f64,
-    /// Initial joint positions [rad]; default the model's home pose.
+    /// Initial joint positions \[rad\]; default the model's home pose.
     pub initial_q: Option<Vec<f64>>,
     /// The probe.
     pub probe: ProbeParams,
@@ -231,12 +231,12 @@ impl Scene {
         self.torso.as_mut()
     }
 
-    /// Physics timestep [s].
+    /// Physics timestep \[s\].
     pub fn dt(&self) -> f64 {
         self.world.dt()
     }
 
-    /// Simulated time [s].
+    /// Simulated time \[s\].
     pub fn time(&self) -> f64 {
         self.world.time()
     }
@@ -413,7 +413,7 @@ impl Scene {
         Ok(())
     }
 
-    /// Set the probe's mass [kg] (the arm's last link's mass properties follow).
+    /// Set the probe's mass \[kg\] (the arm's last link's mass properties follow).
     pub fn set_probe_mass(&mut self, mass: f64) {
         self.params.probe.mass = mass;
         let s = &mut self.world.sets;
@@ -490,7 +490,7 @@ impl Scene {
     }
 
     /// Contact force pressing along the probe axis (positive when the probe pushes into
-    /// what it touches) [N], noise-free.
+    /// what it touches) \[N\], noise-free.
     pub fn axial_contact_force(&self) -> f64 {
         let axis = self.tip_pose().rotation * Vector::Z;
         let f = self.contact_force;
@@ -529,9 +529,9 @@ impl Scene {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct BoxObjectParams {
-    /// Half extents [m]. Default 0.025 (a 5 cm cube).
+    /// Half extents \[m\]. Default 0.025 (a 5 cm cube).
     pub half_extents: [f64; 3],
-    /// Mass [kg]. Default 0.2.
+    /// Mass \[kg\]. Default 0.2.
     pub mass: f64,
     /// Friction coefficient (combined with the table's by rapier's average rule).
     /// Default 0.5.

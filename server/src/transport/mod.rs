@@ -3,7 +3,7 @@
 //! One dispatcher thread owns every iceoryx2 port (`ipc::Service` ports are `!Send`),
 //! polls the leases' action subscribers, runs exchanges on the [`crate::pool`] and
 //! publishes observations. Waiting is spin-then-block on both sides: see
-//! [`dispatcher`] for the wake-up protocol.
+//! `dispatcher.rs` for the wake-up protocol.
 
 mod control;
 mod dispatcher;

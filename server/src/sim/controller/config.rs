@@ -43,13 +43,13 @@ pub struct ControllerConfig {
     pub kind: ControllerKind,
     /// OSC impedance mode. Default `fixed`.
     pub impedance_mode: ImpedanceMode,
-    /// Actions per second [Hz]. Default 20 (robosuite's default; the seed trained at 500).
+    /// Actions per second \[Hz\]. Default 20 (robosuite's default; the seed trained at 500).
     pub control_freq: f64,
-    /// Largest tip translation per action [m]. Default 0.05 (the seed's limit).
+    /// Largest tip translation per action \[m\]. Default 0.05 (the seed's limit).
     pub position_limit: f64,
-    /// Largest tip rotation per action [rad]. Default 0.5 (the seed's limit).
+    /// Largest tip rotation per action \[rad\]. Default 0.5 (the seed's limit).
     pub rotation_limit: f64,
-    /// Largest joint position change per action [rad]. Default 0.05.
+    /// Largest joint position change per action \[rad\]. Default 0.05.
     pub joint_delta_limit: f64,
     /// OSC gains (fixed mode, and the starting gains of the variable modes).
     pub osc: OscParams,
@@ -57,7 +57,7 @@ pub struct ControllerConfig {
     pub kp_range: [f64; 2],
     /// Damping-ratio range of the variable mode. Default [0, 10] (robosuite's).
     pub damping_ratio_range: [f64; 2],
-    /// Force the hybrid controller holds along the probe axis [N]. Default 5.
+    /// Force the hybrid controller holds along the probe axis \[N\]. Default 5.
     pub target_force: f64,
 }
 

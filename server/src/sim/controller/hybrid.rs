@@ -42,7 +42,7 @@ pub struct HybridForceMotion {
     pub motion: Osc,
     /// Force loop gains.
     pub gains: ForceGains,
-    /// Desired contact force along the probe axis [N]. Default 5 (the seed's target).
+    /// Desired contact force along the probe axis \[N\]. Default 5 (the seed's target).
     pub force: f64,
     integral: f64,
 }
@@ -58,7 +58,7 @@ impl HybridForceMotion {
         }
     }
 
-    /// Contact force along the probe axis from the sensor, tool weight removed [N]
+    /// Contact force along the probe axis from the sensor, tool weight removed \[N\]
     /// (positive when pressing).
     pub fn measured_force(scene: &Scene) -> f64 {
         let reading = scene.ft_reading();

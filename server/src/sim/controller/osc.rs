@@ -75,7 +75,7 @@ impl Osc {
         }
     }
 
-    /// The goal position [m] and rotation.
+    /// The goal position \[m\] and rotation.
     pub fn goal(&self) -> ([f64; 3], Rotation) {
         (self.goal_position, self.goal_rotation)
     }

@@ -11,11 +11,11 @@
 /// A capsule collision shape between two points of a link frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Capsule {
-    /// First segment end, link frame [m].
+    /// First segment end, link frame \[m\].
     pub a: [f64; 3],
-    /// Second segment end, link frame [m].
+    /// Second segment end, link frame \[m\].
     pub b: [f64; 3],
-    /// Radius [m].
+    /// Radius \[m\].
     pub radius: f64,
 }
 
@@ -24,9 +24,9 @@ pub struct Capsule {
 pub struct LinkSpec {
     /// Link name (URDF `link name`).
     pub name: String,
-    /// Mass [kg].
+    /// Mass \[kg\].
     pub mass: f64,
-    /// Centre of mass in the link frame [m].
+    /// Centre of mass in the link frame \[m\].
     pub com: [f64; 3],
     /// Inertia about the centre of mass, link-frame axes [kg·m²]:
     /// `[ixx, iyy, izz, ixy, ixz, iyz]`.
@@ -40,15 +40,15 @@ pub struct LinkSpec {
 pub struct JointSpec {
     /// Joint name.
     pub name: String,
-    /// Joint frame origin in the parent link frame [m].
+    /// Joint frame origin in the parent link frame \[m\].
     pub origin_xyz: [f64; 3],
-    /// Joint frame orientation in the parent link frame, fixed-axis roll-pitch-yaw [rad].
+    /// Joint frame orientation in the parent link frame, fixed-axis roll-pitch-yaw \[rad\].
     pub origin_rpy: [f64; 3],
     /// Rotation axis in the joint frame (unit vector).
     pub axis: [f64; 3],
-    /// Lower position limit [rad].
+    /// Lower position limit \[rad\].
     pub lower: f64,
-    /// Upper position limit [rad].
+    /// Upper position limit \[rad\].
     pub upper: f64,
     /// Velocity limit [rad/s].
     pub max_velocity: f64,
@@ -71,11 +71,11 @@ pub struct RobotModel {
     pub base: LinkSpec,
     /// Joints from base to flange.
     pub joints: Vec<JointSpec>,
-    /// Tool flange frame in the last link frame: translation [m].
+    /// Tool flange frame in the last link frame: translation \[m\].
     pub flange_xyz: [f64; 3],
-    /// Tool flange frame in the last link frame: roll-pitch-yaw [rad].
+    /// Tool flange frame in the last link frame: roll-pitch-yaw \[rad\].
     pub flange_rpy: [f64; 3],
-    /// A comfortable starting configuration [rad], one per joint.
+    /// A comfortable starting configuration \[rad\], one per joint.
     pub home: Vec<f64>,
 }
 

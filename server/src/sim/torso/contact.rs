@@ -16,9 +16,9 @@ use crate::sim::vec3::{add, cross, scale, sub};
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ProbeFace {
-    /// Half width across the array [m]. Default 0.005 (10 mm face).
+    /// Half width across the array \[m\]. Default 0.005 (10 mm face).
     pub half_width: f64,
-    /// Half length along the array [m]. Default 0.03 (60 mm face).
+    /// Half length along the array \[m\]. Default 0.03 (60 mm face).
     pub half_length: f64,
     /// Samples across and along the face. Default 3 × 13 (5 mm pitch): well below the
     /// particle spacing, so the contact force is smooth as the probe slides.
@@ -63,12 +63,12 @@ impl ProbeFace {
 /// The probe's rigid-body state at the start of a step (world frame).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProbeKinematics {
-    /// Centre of the face (the tip) [m].
+    /// Centre of the face (the tip) \[m\].
     pub tip: [f64; 3],
     /// Probe axes in world coordinates: `axes[0]` across, `axes[1]` along the array,
     /// `axes[2]` out of the face.
     pub axes: [[f64; 3]; 3],
-    /// Centre of mass of the body the wrench is applied to [m].
+    /// Centre of mass of the body the wrench is applied to \[m\].
     pub com: [f64; 3],
     /// Linear velocity of the centre of mass [m/s].
     pub linear_velocity: [f64; 3],
@@ -79,11 +79,11 @@ pub struct ProbeKinematics {
 /// The contact wrench the skin exerts on the probe, about its centre of mass.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ContactWrench {
-    /// Force [N] (world).
+    /// Force \[N\] (world).
     pub force: [f64; 3],
     /// Torque about the probe's centre of mass [N·m] (world).
     pub torque: [f64; 3],
-    /// Sum of normal forces [N].
+    /// Sum of normal forces \[N\].
     pub normal_force: f64,
     /// Samples in contact.
     pub samples_in_contact: usize,

@@ -38,7 +38,7 @@ pub const SCANNER_SPEED: f64 = 1540.0;
 const PULSE_CYCLES: f64 = 2.0;
 /// Receive f-number (lateral resolution λ·F#).
 const F_NUMBER: f64 = 2.0;
-/// Excess two-way loss beyond which a pixel counts as shadowed [dB].
+/// Excess two-way loss beyond which a pixel counts as shadowed \[dB\].
 const SHADOW_DB: f64 = 40.0;
 /// Coupling below which a line carries no useful image.
 const MIN_COUPLING: f64 = 0.5;
@@ -51,20 +51,20 @@ pub struct UltrasoundConfig {
     pub lines: usize,
     /// Depth samples (image rows). Default 128.
     pub rows: usize,
-    /// Array aperture along the probe's y axis [m]; at most the face length. Default 0.04.
+    /// Array aperture along the probe's y axis \[m\]; at most the face length. Default 0.04.
     pub aperture: f64,
-    /// Imaging depth from the face [m]. Default 0.12.
+    /// Imaging depth from the face \[m\]. Default 0.12.
     pub depth: f64,
-    /// Centre frequency [MHz]. Default 5.
+    /// Centre frequency \[MHz\]. Default 5.
     pub frequency_mhz: f64,
-    /// Displayed dynamic range [dB]. Default 60.
+    /// Displayed dynamic range \[dB\]. Default 60.
     pub dynamic_range_db: f64,
-    /// Overall gain [dB]. Default 10.
+    /// Overall gain \[dB\]. Default 10.
     pub gain_db: f64,
     /// Time-gain compensation slope [dB/(cm·MHz)], two-way loss undone. Default 0.5
     /// (average soft tissue).
     pub tgc_db_cm_mhz: f64,
-    /// Gel layer thickness: a gap up to this still couples, fading linearly [m].
+    /// Gel layer thickness: a gap up to this still couples, fading linearly \[m\].
     /// Default 0.0005.
     pub gel: f64,
     /// Seed of the speckle field (the patient's scatterers; fixed across episodes).
@@ -108,7 +108,7 @@ pub struct UltrasoundConfigError {
 }
 
 impl UltrasoundConfig {
-    /// Check ranges; `face_length` is the probe face's length along the array [m].
+    /// Check ranges; `face_length` is the probe face's length along the array \[m\].
     pub fn validate(&self, face_length: f64) -> Result<(), UltrasoundConfigError> {
         let err = |key, message: String| Err(UltrasoundConfigError { key, message });
         if !(1..=1024).contains(&self.lines) {
@@ -184,7 +184,7 @@ impl UltrasoundConfig {
         Ok(())
     }
 
-    /// Wavelength at the centre frequency [m].
+    /// Wavelength at the centre frequency \[m\].
     pub fn wavelength(&self) -> f64 {
         SCANNER_SPEED / (self.frequency_mhz * 1e6)
     }
@@ -193,13 +193,13 @@ impl UltrasoundConfig {
 /// The probe's imaging frame (world).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ImagingFrame {
-    /// Centre of the face [m].
+    /// Centre of the face \[m\].
     pub origin: [f64; 3],
     /// Unit direction along the array (image columns left to right).
     pub lateral: [f64; 3],
     /// Unit beam direction, out of the face into the body (image rows top to bottom).
     pub axis: [f64; 3],
-    /// Half the face's width across the array (elevation) [m]: an element couples
+    /// Half the face's width across the array (elevation) \[m\]: an element couples
     /// where any part of its strip of face touches the skin (gel fills the wedge).
     pub half_width: f64,
 }
