@@ -30,11 +30,11 @@ pub mod noise;
 pub mod onset;
 pub mod replay;
 pub mod report;
-pub mod seed_method;
 pub mod select;
 pub mod session;
 pub mod split;
 pub mod synth;
+pub mod thesis_method;
 pub mod trajectory;
 pub mod unexplained;
 
@@ -145,7 +145,7 @@ pub struct Outcome {
     /// Whether something the catalogue lacks remains, and where.
     pub verdict: unexplained::Verdict,
     /// The seed's regression per site.
-    pub seed_method: Vec<seed_method::SeedFit>,
+    pub thesis_method: Vec<thesis_method::ThesisFit>,
     /// The setup.
     pub setup: Setup,
     /// Contact stiffness of the baseline [N/m].
@@ -223,7 +223,7 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
     } = selected;
 
     progress.stage("writing the report");
-    let seed_fits = seed_method::seed_method(&series, -base.surface_offset);
+    let thesis_fits = thesis_method::thesis_method(&series, -base.surface_offset);
     let outcome = Outcome {
         dataset,
         split,
@@ -240,7 +240,7 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
         accepted,
         rejected,
         verdict,
-        seed_method: seed_fits,
+        thesis_method: thesis_fits,
         setup,
         k_eff,
     };
