@@ -22,8 +22,8 @@ mod version;
 mod wire;
 
 pub use control::{
-    AttachReply, AttachRequest, ControlError, ControlErrorKind, ControlReply, ControlRequest,
-    EnvInfo, LeaseStatus, ServerStatus,
+    AttachReply, AttachRequest, BuildStatus, ControlError, ControlErrorKind, ControlReply,
+    ControlRequest, EnvInfo, LeaseStatus, ServerStatus,
 };
 pub use ipc_location::{DEFAULT_PREFIX, IpcLocation, IpcLocationError, PREFIX_ENV, ROOT_ENV};
 pub use layout::{

@@ -335,13 +335,21 @@ fn status(target: &Target, json: bool) -> Result<(), String> {
     }
     for lease in &status.leases {
         println!(
-            "  lease {:>20}  {:<24} x{:<5} {:>10} exchanges  {:>8.1} s  {}",
+            "  lease {:>20}  {:<28} x{:<5} {:>10} exchanges {:>12} env steps  age {:>8.1} s  idle {:>7.1} s  {}",
             lease.lease_id,
             lease.env_id,
             lease.num_envs,
             lease.exchanges,
+            lease.env_steps,
             lease.age_s,
+            lease.idle_s,
             lease.client_label
+        );
+    }
+    for build in &status.building {
+        println!(
+            "  building {:<28} x{:<5} for {:.1} s  {}",
+            build.env_id, build.num_envs, build.waited_s, build.client_label
         );
     }
     Ok(())

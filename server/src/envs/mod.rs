@@ -15,6 +15,6 @@ pub mod ultrasound_scan;
 
 pub use config::{EnvConfigError, parse_config};
 pub use env::{Env, EnvOutput, Transition};
-pub use factory::EnvFactory;
+pub use factory::{EnvBuildError, EnvFactory};
 pub use null::{NULL_ENV_ID, NullConfig, NullEnvFactory};
 pub use registry::{EnvRegistry, UnknownEnv};

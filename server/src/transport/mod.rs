@@ -5,6 +5,8 @@
 //! publishes observations. Waiting is spin-then-block on both sides: see
 //! `dispatcher.rs` for the wake-up protocol.
 
+mod attach;
+mod builder;
 mod control;
 mod dispatcher;
 mod error;

@@ -15,9 +15,9 @@ use super::config::{ArenaConfig, TaskConfig};
 use super::observation::{declare_fields, write_fields};
 use super::randomization::Draw;
 use super::recorder::EpisodeRecorder;
-use crate::envs::EnvFactory;
 use crate::envs::config::{EnvConfigError, parse_config};
 use crate::envs::env::{Env, EnvOutput, Transition};
+use crate::envs::{EnvBuildError, EnvFactory};
 use crate::sim::controller::ArmController;
 use crate::sim::scene::Scene;
 use crate::sim::torso::Breathing;
@@ -352,9 +352,10 @@ impl<T: Task> EnvFactory for ArenaFactory<T> {
         Ok(builder.config(resolved).build())
     }
 
-    fn make(&self, spec: &EnvSpec) -> Box<dyn Env> {
+    fn make(&self, spec: &EnvSpec) -> Result<Box<dyn Env>, EnvBuildError> {
+        let error = |e: &dyn std::fmt::Display| EnvBuildError::new(T::Config::ID, e);
         let config: ArenaConfig<T::Config> =
-            serde_json::from_value(spec.config.clone()).expect("spec holds a validated config");
-        Box::new(ArenaEnv::<T>::new(config).expect("validated config builds"))
+            serde_json::from_value(spec.config.clone()).map_err(|e| error(&e))?;
+        Ok(Box::new(ArenaEnv::<T>::new(config).map_err(|e| error(&e))?))
     }
 }

@@ -21,7 +21,7 @@ fn make(id: &str, config: serde_json::Value) -> (EnvSpec, Box<dyn Env>) {
     let registry = EnvRegistry::default();
     let factory = registry.get(id).unwrap();
     let spec = factory.spec(&map(config)).unwrap();
-    let env = factory.make(&spec);
+    let env = factory.make(&spec).unwrap();
     (spec, env)
 }
 
