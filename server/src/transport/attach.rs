@@ -9,13 +9,14 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use echogym_protocol::{
-    AttachReply, AttachRequest, AutoresetMode, ControlErrorKind, ControlHeader, ControlReply,
+    AttachReply, AttachRequest, AutoresetMode, ControlError, ControlErrorKind, ControlHeader,
+    ControlReply,
 };
 use iceoryx2::active_request::ActiveRequest;
 use iceoryx2::prelude::ipc;
 
 use super::builder::BuildJob;
-use super::control::{error, respond};
+use super::control::{error, refusal, respond};
 use super::dispatcher::Dispatcher;
 use super::lease::Lease;
 use crate::pool::BatchBuildError;
@@ -47,15 +48,15 @@ pub(super) struct AttachPlan {
 
 impl Dispatcher {
     /// Validate an attach request: the plan to build, or the refusal to send.
-    pub(super) fn begin_attach(&self, request: AttachRequest) -> Result<AttachPlan, ControlReply> {
+    pub(super) fn begin_attach(&self, request: AttachRequest) -> Result<AttachPlan, ControlError> {
         if self.shutdown.is_requested() {
-            return Err(error(
+            return Err(refusal(
                 ControlErrorKind::ShuttingDown,
                 "the server is shutting down",
             ));
         }
         let Ok(client_node) = request.client_node_id.parse::<u128>() else {
-            return Err(error(
+            return Err(refusal(
                 ControlErrorKind::InvalidRequest,
                 format!(
                     "client_node_id {:?} is not a node id",
@@ -64,7 +65,7 @@ impl Dispatcher {
             ));
         };
         if request.num_envs == 0 {
-            return Err(error(
+            return Err(refusal(
                 ControlErrorKind::InvalidRequest,
                 "num_envs must be at least 1",
             ));
@@ -72,13 +73,13 @@ impl Dispatcher {
         let factory = self
             .registry
             .get(&request.env_id)
-            .map_err(|e| error(ControlErrorKind::UnknownEnv, e.to_string()))?;
+            .map_err(|e| refusal(ControlErrorKind::UnknownEnv, e.to_string()))?;
         let spec = factory
             .spec(&request.config)
-            .map_err(|e| error(ControlErrorKind::InvalidConfig, e.to_string()))?;
+            .map_err(|e| refusal(ControlErrorKind::InvalidConfig, e.to_string()))?;
         let leases = self.leases.len() + self.pending.len();
         if leases >= self.options.max_leases {
-            return Err(error(
+            return Err(refusal(
                 ControlErrorKind::CapacityExceeded,
                 format!(
                     "the server holds its maximum of {} leases ({} of them being built)",
@@ -92,7 +93,7 @@ impl Dispatcher {
             .checked_add(request.num_envs)
             .is_some_and(|total| total <= self.options.max_envs);
         if !fits {
-            return Err(error(
+            return Err(refusal(
                 ControlErrorKind::CapacityExceeded,
                 format!(
                     "{} more envs would exceed the server's max_envs of {} ({envs_in_use} in use or being built)",

@@ -9,10 +9,15 @@ use super::attach::ControlRequestHandle;
 use super::dispatcher::Dispatcher;
 
 /// A refusal, logged at debug level.
-pub(super) fn error(kind: ControlErrorKind, message: impl Into<String>) -> ControlReply {
+pub(super) fn refusal(kind: ControlErrorKind, message: impl Into<String>) -> ControlError {
     let message = message.into();
     tracing::debug!(?kind, %message, "control request refused");
-    ControlReply::Error(ControlError { kind, message })
+    ControlError { kind, message }
+}
+
+/// A refusal as a reply.
+pub(super) fn error(kind: ControlErrorKind, message: impl Into<String>) -> ControlReply {
+    ControlReply::Error(refusal(kind, message))
 }
 
 /// Send `reply` to the client of `request` (a client that went away is only logged).
@@ -48,9 +53,9 @@ pub(super) fn respond(request: &ControlRequestHandle, reply: &ControlReply) {
 pub(super) fn parse_control(
     header: ControlHeader,
     payload: &[u8],
-) -> Result<ControlRequest, ControlReply> {
+) -> Result<ControlRequest, ControlError> {
     if header.protocol_version != PROTOCOL_VERSION {
-        return Err(error(
+        return Err(refusal(
             ControlErrorKind::VersionMismatch,
             format!(
                 "client speaks protocol {}, server speaks {PROTOCOL_VERSION}; install matching echogym versions",
@@ -60,7 +65,7 @@ pub(super) fn parse_control(
     }
     let len = (header.payload_len as usize).min(payload.len());
     serde_json::from_slice(&payload[..len]).map_err(|e| {
-        error(
+        refusal(
             ControlErrorKind::InvalidRequest,
             format!("malformed request: {e}"),
         )

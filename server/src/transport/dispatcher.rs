@@ -16,8 +16,8 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use echogym_protocol::{
-    ActionHeader, ControlRequest, IpcLocation, ObsHeader, Op, PROTOCOL_VERSION, ServiceNames,
-    StepStatus,
+    ActionHeader, ControlReply, ControlRequest, IpcLocation, ObsHeader, Op, PROTOCOL_VERSION,
+    ServiceNames, StepStatus,
 };
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::server::Server;
@@ -255,9 +255,9 @@ impl Dispatcher {
             };
             served = true;
             let reply = match parse_control(*request.user_header(), request.payload()) {
-                Err(refusal) => refusal,
+                Err(refusal) => ControlReply::Error(refusal),
                 Ok(ControlRequest::Attach(attach)) => match self.begin_attach(attach) {
-                    Err(refusal) => refusal,
+                    Err(refusal) => ControlReply::Error(refusal),
                     Ok(plan) => {
                         // Answered when the envs are built (finish_builds).
                         self.queue_attach(plan, request);
