@@ -11,7 +11,8 @@
 //! the torso's unit tests.)
 
 use echogym::sim::controller::{Osc, OscParams};
-use echogym::sim::scene::{RobotKind, Scene, SceneParams};
+use echogym::sim::robot::RobotKind;
+use echogym::sim::scene::{Scene, SceneParams};
 use echogym::sim::torso::{ProbeFace, ProbeKinematics, Torso, TorsoParams};
 use rapier3d::na::DVector;
 
@@ -416,7 +417,7 @@ fn urdf_arms_load_merge_fixed_joints_and_hold_still() {
     use echogym::sim::robot::load_urdf;
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/three_link_arm.urdf");
-    let model = load_urdf(&path).unwrap();
+    let model = load_urdf(&path, None).unwrap();
     assert_eq!(model.dof(), 3);
     // The fixed base mount folds into the first joint's origin, the housing's 0.5 kg into
     // link2, the trailing tool0 becomes the flange.

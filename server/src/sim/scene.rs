@@ -10,32 +10,11 @@ use serde::{Deserialize, Serialize};
 
 use super::ft_sensor::{FtSensor, FtSensorParams};
 use super::probe::{ProbeParamError, ProbeParams};
-use super::robot::{Arm, ArmError, RobotModel, UrdfError, load_urdf, panda, ur5e};
+use super::robot::{Arm, ArmError, RobotKind, UrdfError, load_urdf};
 use super::torso::{
     ContactWrench, ProbeKinematics, Torso, TorsoParamError, TorsoParams, add, cross, scale, sub,
 };
 use super::world::{World, WorldParams, arr3, groups, vec3};
-
-/// Which arm.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "lowercase")]
-pub enum RobotKind {
-    /// Franka Emika Panda (7 DoF).
-    #[default]
-    Panda,
-    /// Universal Robots UR5e (6 DoF).
-    Ur5e,
-}
-
-impl RobotKind {
-    /// The manufacturer's model.
-    pub fn model(self) -> RobotModel {
-        match self {
-            Self::Panda => panda(),
-            Self::Ur5e => ur5e(),
-        }
-    }
-}
 
 /// Everything a scene is built from. Every field has a default (the seed's arena).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -138,7 +117,7 @@ impl Scene {
         }
         let mut world = World::new(&params.world);
         let model = match &params.robot_urdf {
-            Some(path) => load_urdf(path)?,
+            Some(path) => load_urdf(path, None)?,
             None => params.robot.model(),
         };
         let base = Pose::from_parts(

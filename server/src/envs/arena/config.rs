@@ -11,7 +11,8 @@ use crate::envs::config::{EnvConfigError, check_range};
 use crate::sim::controller::ControllerConfig;
 use crate::sim::ft_sensor::FtSensorParams;
 use crate::sim::probe::ProbeParams;
-use crate::sim::scene::{RobotKind, SceneParams};
+use crate::sim::robot::RobotKind;
+use crate::sim::scene::SceneParams;
 use crate::sim::torso::{BreathingParams, TorsoParams};
 use crate::sim::ultrasound::UltrasoundConfig;
 
