@@ -71,16 +71,20 @@ impl RobotKind {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
-    use crate::sim::robot::{LinkSpec, panda, ur5e};
+    use rapier3d::na::{Rotation3, Unit, Vector3};
 
-    /// Snapshots of the hand-typed Rust models the URDFs replaced.
-    fn fixture(kind: RobotKind) -> RobotModel {
+    use super::*;
+    use crate::sim::robot::LinkSpec;
+
+    /// Snapshots of the hand-typed Rust models (`panda.rs`, `ur5e.rs`, commit 9af4ca2) that
+    /// the URDFs replaced, taken before they were deleted. A deliberate change to a
+    /// built-in URDF updates its snapshot in the same commit.
+    fn snapshot(kind: RobotKind) -> RobotModel {
         let text = match kind {
             RobotKind::Panda => include_str!("../../../../tests/data/robots/panda_model.toml"),
             RobotKind::Ur5e => include_str!("../../../../tests/data/robots/ur5e_model.toml"),
         };
-        toml::from_str(text).expect("fixture parses")
+        toml::from_str(text).expect("snapshot parses")
     }
 
     fn push(out: &mut Vec<(String, f64)>, key: &str, values: &[f64]) {
@@ -126,7 +130,8 @@ mod tests {
     }
 
     /// Same names and structure; every number within 1e-12 and equal once rounded to
-    /// rapier's f32, so the simulation cannot tell the two apart.
+    /// rapier's f32, so the simulation cannot tell the two apart (capsule ends computed
+    /// as centre ± length/2 differ from the typed ones by an ulp).
     fn assert_same(actual: &RobotModel, expected: &RobotModel) {
         assert_eq!(actual.name, expected.name);
         let (a, e) = (numbers(actual), numbers(expected));
@@ -141,33 +146,84 @@ mod tests {
         }
     }
 
-    #[test]
-    fn urdf_models_equal_the_hand_typed_ones() {
-        assert_same(&RobotKind::Panda.model(), &panda());
-        assert_same(&RobotKind::Ur5e.model(), &ur5e());
+    /// Flange position [m] and z axis in the base frame at joint positions `q`, in f64.
+    fn flange(model: &RobotModel, q: &[f64]) -> (Vector3<f64>, Vector3<f64>) {
+        let rpy = |r: [f64; 3]| Rotation3::from_euler_angles(r[0], r[1], r[2]);
+        let (mut rot, mut pos) = (Rotation3::identity(), Vector3::zeros());
+        for (j, &qk) in model.joints.iter().zip(q) {
+            pos += rot * Vector3::from(j.origin_xyz);
+            let axis = Unit::new_normalize(Vector3::from(j.axis));
+            rot = rot * rpy(j.origin_rpy) * Rotation3::from_axis_angle(&axis, qk);
+        }
+        pos += rot * Vector3::from(model.flange_xyz);
+        rot *= rpy(model.flange_rpy);
+        (pos, rot * Vector3::z())
+    }
+
+    fn assert_near(actual: Vector3<f64>, expected: [f64; 3], tol: f64) {
+        assert!(
+            (actual - Vector3::from(expected)).amax() < tol,
+            "{actual:?} vs {expected:?}"
+        );
     }
 
     #[test]
-    fn urdf_models_equal_their_snapshots() {
+    fn urdf_models_equal_the_hand_typed_snapshots() {
         for kind in RobotKind::ALL {
-            assert_same(&kind.model(), &fixture(kind));
+            assert_same(&kind.model(), &snapshot(kind));
         }
     }
 
+    /// Numbers quoted from the manufacturers' data and forward kinematics, independent of
+    /// both the URDFs and the snapshots.
     #[test]
-    fn hand_typed_models_equal_their_snapshots() {
-        assert_eq!(panda(), fixture(RobotKind::Panda));
-        assert_eq!(ur5e(), fixture(RobotKind::Ur5e));
-    }
+    fn built_in_arms_keep_their_published_numbers() {
+        let panda = RobotKind::Panda.model();
+        assert_eq!(panda.dof(), 7);
+        assert_eq!(panda.joints[6].link.name, "panda_link7");
+        let moving: f64 = panda.joints.iter().map(|j| j.link.mass).sum();
+        assert!((moving - 13.78593).abs() < 1e-9, "{moving}");
+        let efforts: Vec<f64> = panda.joints.iter().map(|j| j.max_effort).collect();
+        assert_eq!(efforts, [87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0]);
+        assert_eq!(
+            (panda.joints[3].lower, panda.joints[3].upper),
+            (-3.0718, -0.0698)
+        );
+        assert!(
+            panda
+                .joints
+                .iter()
+                .all(|j| j.damping == 0.003 && j.friction == 0.2)
+        );
+        // Franka's ready pose: flange 0.107 m past link7, pointing straight down.
+        let (pos, z) = flange(&panda, &panda.home);
+        assert_near(pos, [0.3069, 0.0, 0.5903], 1e-4);
+        assert_near(z, [0.0, 0.0, -1.0], 1e-12);
 
-    #[test]
-    #[ignore = "writes the snapshots"]
-    fn write_snapshots() {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/robots");
-        std::fs::create_dir_all(&dir).unwrap();
-        for (name, model) in [("panda", panda()), ("ur5e", ur5e())] {
-            let text = toml::to_string(&model).unwrap();
-            std::fs::write(dir.join(format!("{name}_model.toml")), text).unwrap();
-        }
+        let ur5e = RobotKind::Ur5e.model();
+        assert_eq!(ur5e.dof(), 6);
+        assert_eq!(ur5e.base.name, "base_link");
+        assert_eq!(ur5e.base.mass, 4.0);
+        let moving: f64 = ur5e.joints.iter().map(|j| j.link.mass).sum();
+        assert!((moving - 17.7).abs() < 1e-9, "{moving}");
+        let efforts: Vec<f64> = ur5e.joints.iter().map(|j| j.max_effort).collect();
+        assert_eq!(efforts, [150.0, 150.0, 150.0, 28.0, 28.0, 28.0]);
+        assert!(
+            ur5e.joints
+                .iter()
+                .all(|j| j.damping == 0.0 && j.friction == 0.0)
+        );
+        // tool0 at q = 0 from the UR5e DH table, in base_link (UR's `base` turned by π):
+        // x = a2 + a3, y = d4 + d6, z = d1 - d5.
+        let (pos, _) = flange(&ur5e, &[0.0; 6]);
+        assert_near(
+            pos,
+            [0.425 + 0.3922, 0.1333 + 0.0996, 0.1625 - 0.0997],
+            1e-9,
+        );
+        assert_eq!((ur5e.flange_xyz, ur5e.flange_rpy), ([0.0; 3], [0.0; 3]));
+        let (pos, z) = flange(&ur5e, &ur5e.home);
+        assert_near(pos, [0.4919, 0.1333, 0.4879], 1e-4);
+        assert_near(z, [0.0, 0.0, -1.0], 1e-9);
     }
 }

@@ -3,13 +3,9 @@
 mod arm;
 mod builtin;
 mod model;
-mod panda;
-mod ur5e;
 mod urdf;
 
 pub use arm::{Arm, ArmError, rpy_rotation};
 pub use builtin::RobotKind;
 pub use model::{Capsule, JointSpec, LinkSpec, RobotModel};
-pub use panda::panda;
-pub use ur5e::ur5e;
 pub use urdf::{ROUND_OFF, UrdfError, load_urdf, load_urdf_str};
