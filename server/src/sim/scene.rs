@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 
 use super::ft_sensor::{FtSensor, FtSensorParams};
 use super::probe::{ProbeParamError, ProbeParams};
-use super::robot::{Arm, ArmError, RobotKind, UrdfError, load_urdf};
+use super::robot::{Arm, ArmError, RobotConfig, RobotConfigError};
 use super::torso::{
     ContactWrench, ProbeKinematics, Torso, TorsoParamError, TorsoParams, add, cross, scale, sub,
 };
@@ -22,11 +22,8 @@ use super::world::{World, WorldParams, arr3, groups, vec3};
 pub struct SceneParams {
     /// Timestep, gravity, table.
     pub world: WorldParams,
-    /// The arm. Default Panda.
-    pub robot: RobotKind,
-    /// Load the arm from this URDF instead of `robot` (serial chains; see
-    /// [`super::robot::load_urdf`]).
-    pub robot_urdf: Option<std::path::PathBuf>,
+    /// The arm: a built-in one (default Panda) or a URDF file ([`RobotConfig`]).
+    pub robot: RobotConfig,
     /// World position of the robot base [m]. Default (-0.5, 0, 0.8): on the table,
     /// half a metre from the torso's centre, within both arms' reach.
     pub robot_base: [f64; 3],
@@ -52,8 +49,7 @@ impl Default for SceneParams {
     fn default() -> Self {
         Self {
             world: WorldParams::default(),
-            robot: RobotKind::Panda,
-            robot_urdf: None,
+            robot: RobotConfig::default(),
             robot_base: [-0.5, 0.0, 0.8],
             robot_base_yaw: 0.0,
             initial_q: None,
@@ -78,9 +74,9 @@ pub enum SceneError {
     /// The probe.
     #[error(transparent)]
     Probe(#[from] ProbeParamError),
-    /// The URDF.
+    /// The arm's model (its URDF, tool mount or home pose).
     #[error(transparent)]
-    Urdf(#[from] UrdfError),
+    Robot(#[from] RobotConfigError),
     /// Inconsistent values.
     #[error("invalid scene: {0}")]
     Invalid(String),
@@ -116,10 +112,7 @@ impl Scene {
             )));
         }
         let mut world = World::new(&params.world);
-        let model = match &params.robot_urdf {
-            Some(path) => load_urdf(path, None)?,
-            None => params.robot.model(),
-        };
+        let model = params.robot.model()?;
         let base = Pose::from_parts(
             vec3(params.robot_base),
             Rotation::from_rotation_z(params.robot_base_yaw as Real),

@@ -10,7 +10,7 @@
 //! (parallel-axis theorem); links hanging off the path through fixed joints only (UR's
 //! `base`, sensor or camera frames) join the same way; trailing fixed joints on the path
 //! (`flange`, `tool0`) become the flange frame. A frame made of one joint origin is kept
-//! exactly as written; composed frames drop round-off below [`ROUND_OFF`], so frames that
+//! exactly as written; composed frames drop round-off below 1e-12 m or rad, so frames that
 //! cancel (UR's `flange` → `tool0`) are exactly the identity. Collision geometry becomes
 //! capsules (capsules and cylinders exactly; boxes along their longest side; spheres as
 //! zero-length capsules); meshes are skipped. URDF carries no home pose: each joint starts
@@ -23,7 +23,7 @@ use rapier3d::na::{Matrix3, Rotation3, Vector3};
 use super::model::{Capsule, JointSpec, LinkSpec, RobotModel};
 
 /// Components of composed frames below this are round-off and set to 0 [m, rad].
-pub const ROUND_OFF: f64 = 1e-12;
+const ROUND_OFF: f64 = 1e-12;
 
 /// A URDF could not be turned into a serial arm.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -266,6 +266,16 @@ struct Tree<'a> {
 }
 
 impl<'a> Tree<'a> {
+    /// Check that every joint joins links the file defines.
+    fn new(robot: &'a urdf_rs::Robot) -> Result<Self, UrdfError> {
+        let tree = Self { robot };
+        for joint in &robot.joints {
+            tree.link(&joint.parent.link)?;
+            tree.link(&joint.child.link)?;
+        }
+        Ok(tree)
+    }
+
     fn link(&self, name: &str) -> Result<&'a urdf_rs::Link, UrdfError> {
         self.robot
             .links
@@ -381,7 +391,7 @@ fn model_from_urdf(
     robot: &urdf_rs::Robot,
     tool_link: Option<&str>,
 ) -> Result<RobotModel, UrdfError> {
-    let tree = Tree { robot };
+    let tree = Tree::new(robot)?;
     let tool = tree.tool_link(tool_link)?;
     let path = tree.path_to(tool)?;
     let root_name = path.first().map_or(tool, |j| j.parent.link.as_str());
@@ -485,5 +495,85 @@ fn joint_spec(joint: &urdf_rs::Joint, (origin_xyz, origin_rpy): ([f64; 3], [f64;
             inertia: [0.0; 6],
             capsules: Vec::new(),
         },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A one-joint arm whose link `arm` carries the extra `tail` text (joints and links).
+    fn arm(tail: &str) -> String {
+        format!(
+            r#"<robot name="t">
+              <link name="base"/>
+              <joint name="j" type="revolute"><parent link="base"/><child link="arm"/>
+                <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+              <link name="arm"><inertial><mass value="1"/>
+                <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+              {tail}
+            </robot>"#
+        )
+    }
+
+    fn fixed(name: &str, parent: &str, x: f64, mass: f64) -> String {
+        format!(
+            r#"<joint name="{name}_joint" type="fixed"><parent link="{parent}"/>
+                 <child link="{name}"/><origin xyz="{x} 0 0"/></joint>
+               <link name="{name}"><inertial><mass value="{mass}"/>
+                 <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>"#
+        )
+    }
+
+    #[test]
+    fn fixed_side_links_merge_and_the_tool_link_can_be_named() {
+        // `camera` hangs off `arm`; the chain ends in flange -> tool0.
+        let text = arm(&[
+            fixed("camera", "arm", -0.1, 1.0),
+            fixed("flange", "arm", 0.1, 0.0),
+            fixed("tool0", "flange", 0.1, 0.0),
+        ]
+        .concat());
+        let model = load_urdf_str(&text, None).unwrap();
+        assert_eq!(model.joints[0].link.mass, 2.0);
+        assert!((model.joints[0].link.com[0] + 0.05).abs() < 1e-15);
+        assert_eq!(model.flange_xyz, [0.2, 0.0, 0.0]);
+        let at_flange = load_urdf_str(&text, Some("flange")).unwrap();
+        assert_eq!(at_flange.flange_xyz, [0.1, 0.0, 0.0]);
+        let at_camera = load_urdf_str(&text, Some("camera")).unwrap();
+        assert_eq!(at_camera.flange_xyz, [-0.1, 0.0, 0.0]);
+        assert!(matches!(
+            load_urdf_str(&text, Some("hand")),
+            Err(UrdfError::UnknownToolLink { .. })
+        ));
+    }
+
+    #[test]
+    fn ambiguous_or_branching_arms_are_refused() {
+        let twins = arm(&[
+            fixed("left", "arm", 0.1, 0.0),
+            fixed("right", "arm", -0.1, 0.0),
+        ]
+        .concat());
+        assert_eq!(
+            load_urdf_str(&twins, None).unwrap_err().to_string(),
+            "URDF t ends in several equally long chains (left, right); name the tool link"
+        );
+        assert!(load_urdf_str(&twins, Some("left")).is_ok());
+        let finger = r#"<joint name="f" type="revolute"><parent link="arm"/><child link="finger"/>
+              <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+            <link name="finger"/>"#;
+        let branching = arm(&[finger, &fixed("tool0", "arm", 0.1, 0.0)].concat());
+        assert!(matches!(
+            load_urdf_str(&branching, Some("tool0")),
+            Err(UrdfError::NotSerial { ref link }) if link == "arm"
+        ));
+        let orphan = arm(
+            r#"<joint name="x" type="fixed"><parent link="arm"/><child link="ghost"/></joint>"#,
+        );
+        assert!(matches!(
+            load_urdf_str(&orphan, None),
+            Err(UrdfError::NotATree { ref link }) if link == "ghost"
+        ));
     }
 }
