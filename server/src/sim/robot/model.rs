@@ -1,6 +1,6 @@
 //! [`RobotModel`]: a serial arm described like a URDF (joint origins, axes, limits,
-//! link inertials, simple collision capsules), shared by the built-in UR5e and Panda
-//! models and the URDF loader.
+//! link inertials, simple collision capsules), as the URDF loader builds it for the
+//! built-in arms and for users' files.
 //!
 //! Units: metres, radians, kilograms, kg·m², seconds, newtons, newton-metres.
 //! Frames: every joint origin is given in the frame of its parent link (URDF
