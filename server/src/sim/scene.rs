@@ -10,31 +10,10 @@ use serde::{Deserialize, Serialize};
 
 use super::ft_sensor::{FtSensor, FtSensorParams};
 use super::probe::{ProbeParamError, ProbeParams};
-use super::robot::{Arm, ArmError, RobotModel, UrdfError, load_urdf, panda, ur5e};
+use super::robot::{Arm, ArmError, RobotConfig, RobotConfigError};
 use super::torso::{ContactWrench, ProbeKinematics, Torso, TorsoParamError, TorsoParams};
 use super::vec3::{add, cross, scale, sub};
 use super::world::{World, WorldParams, arr3, groups, vec3};
-
-/// Which arm.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "lowercase")]
-pub enum RobotKind {
-    /// Franka Emika Panda (7 DoF).
-    #[default]
-    Panda,
-    /// Universal Robots UR5e (6 DoF).
-    Ur5e,
-}
-
-impl RobotKind {
-    /// The manufacturer's model.
-    pub fn model(self) -> RobotModel {
-        match self {
-            Self::Panda => panda(),
-            Self::Ur5e => ur5e(),
-        }
-    }
-}
 
 /// Everything a scene is built from. Every field has a default (the seed's arena).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -42,11 +21,8 @@ impl RobotKind {
 pub struct SceneParams {
     /// Timestep, gravity, table.
     pub world: WorldParams,
-    /// The arm. Default Panda.
-    pub robot: RobotKind,
-    /// Load the arm from this URDF instead of `robot` (serial chains; see
-    /// [`super::robot::load_urdf`]).
-    pub robot_urdf: Option<std::path::PathBuf>,
+    /// The arm: a built-in one (default Panda) or a URDF file ([`RobotConfig`]).
+    pub robot: RobotConfig,
     /// World position of the robot base \[m\]. Default (-0.5, 0, 0.8): on the table,
     /// half a metre from the torso's centre, within both arms' reach.
     pub robot_base: [f64; 3],
@@ -72,8 +48,7 @@ impl Default for SceneParams {
     fn default() -> Self {
         Self {
             world: WorldParams::default(),
-            robot: RobotKind::Panda,
-            robot_urdf: None,
+            robot: RobotConfig::default(),
             robot_base: [-0.5, 0.0, 0.8],
             robot_base_yaw: 0.0,
             initial_q: None,
@@ -98,9 +73,9 @@ pub enum SceneError {
     /// The probe.
     #[error(transparent)]
     Probe(#[from] ProbeParamError),
-    /// The URDF.
+    /// The arm's model (its URDF, tool mount or home pose).
     #[error(transparent)]
-    Urdf(#[from] UrdfError),
+    Robot(#[from] RobotConfigError),
     /// Inconsistent values.
     #[error("invalid scene: {0}")]
     Invalid(String),
@@ -136,10 +111,7 @@ impl Scene {
             )));
         }
         let mut world = World::new(&params.world);
-        let model = match &params.robot_urdf {
-            Some(path) => load_urdf(path)?,
-            None => params.robot.model(),
-        };
+        let model = params.robot.model()?;
         let base = Pose::from_parts(
             vec3(params.robot_base),
             Rotation::from_rotation_z(params.robot_base_yaw as Real),

@@ -8,36 +8,14 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use echogym_protocol::{
-    AttachReply, AttachRequest, AutoresetMode, ControlError, ControlErrorKind, ControlHeader,
-    ControlReply,
-};
-use iceoryx2::active_request::ActiveRequest;
-use iceoryx2::prelude::ipc;
+use echogym_protocol::{AttachReply, AttachRequest, ControlError, ControlErrorKind, ControlReply};
 
 use super::builder::BuildJob;
-use super::control::{error, refusal, respond};
 use super::dispatcher::Dispatcher;
 use super::lease::Lease;
+use super::pending::PendingAttach;
+use super::reply::{ControlRequestHandle, error, refusal, respond};
 use crate::pool::BatchBuildError;
-
-/// A control request whose reply waits for a build.
-pub(super) type ControlRequestHandle =
-    ActiveRequest<ipc::Service, [u8], ControlHeader, [u8], ControlHeader>;
-
-/// An attach whose envs are being built.
-pub(super) struct PendingAttach {
-    /// Where the reply goes (`is_connected` turns false when the client gives up).
-    pub request: ControlRequestHandle,
-    pub ticket: u64,
-    pub cancel: Arc<AtomicBool>,
-    pub client_node: u128,
-    pub client_label: String,
-    pub env_id: String,
-    pub num_envs: usize,
-    pub mode: AutoresetMode,
-    pub started: Instant,
-}
 
 /// What an accepted attach request hands to [`Dispatcher::queue_attach`].
 pub(super) struct AttachPlan {

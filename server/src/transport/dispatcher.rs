@@ -26,11 +26,11 @@ use iceoryx2::sample::Sample;
 use iceoryx2::sample_mut::SampleMut;
 use rayon::prelude::*;
 
-use super::attach::PendingAttach;
 use super::builder::Builder;
-use super::control::{parse_control, respond};
 use super::error::StartError;
 use super::lease::Lease;
+use super::pending::PendingAttach;
+use super::reply::{error, parse_control, respond};
 use super::shutdown::Shutdown;
 use crate::envs::EnvRegistry;
 use crate::pool::WorkerPool;
@@ -422,7 +422,7 @@ impl Dispatcher {
                 .store(true, std::sync::atomic::Ordering::Relaxed);
             respond(
                 &pending.request,
-                &super::control::error(
+                &error(
                     echogym_protocol::ControlErrorKind::ShuttingDown,
                     "the server stopped before the envs were built",
                 ),

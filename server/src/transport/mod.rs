@@ -11,7 +11,9 @@ mod control;
 mod dispatcher;
 mod error;
 mod lease;
+mod pending;
 mod permissions;
+mod reply;
 mod shutdown;
 
 pub use dispatcher::{Dispatcher, DispatcherOptions};

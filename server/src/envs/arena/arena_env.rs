@@ -309,8 +309,15 @@ impl<T: Task> EnvFactory for ArenaFactory<T> {
         let config: ArenaConfig<T::Config> = parse_config(id, config)?;
         config.validate()?;
         let scene_params = config.scene_params();
-        let model = scene_params.robot.model();
-        let dof = model.dof();
+        let dof = config
+            .robot
+            .model()
+            .map_err(|e| EnvConfigError::Invalid {
+                env_id: id.to_owned(),
+                key: "robot",
+                message: e.to_string(),
+            })?
+            .dof();
         let particles = match &config.torso {
             Some(t) => {
                 crate::sim::torso::ShellLayout::new(t.size, t.center_xy, t.bottom_z, t.spacing)

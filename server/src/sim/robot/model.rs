@@ -1,6 +1,6 @@
 //! [`RobotModel`]: a serial arm described like a URDF (joint origins, axes, limits,
-//! link inertials, simple collision capsules), shared by the built-in UR5e and Panda
-//! models and the URDF loader.
+//! link inertials, simple collision capsules), as the URDF loader builds it for the
+//! built-in arms and for users' files.
 //!
 //! Units: metres, radians, kilograms, kg·m², seconds, newtons, newton-metres.
 //! Frames: every joint origin is given in the frame of its parent link (URDF
@@ -8,8 +8,10 @@
 //! its child link about `axis`, expressed in the joint frame; the child link frame is the
 //! joint frame. Inertials are about the link's centre of mass, in the link frame.
 
+use serde::{Deserialize, Serialize};
+
 /// A capsule collision shape between two points of a link frame.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Capsule {
     /// First segment end, link frame \[m\].
     pub a: [f64; 3],
@@ -20,7 +22,7 @@ pub struct Capsule {
 }
 
 /// Mass properties and collision shapes of one link.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct LinkSpec {
     /// Link name (URDF `link name`).
     pub name: String,
@@ -36,7 +38,7 @@ pub struct LinkSpec {
 }
 
 /// A revolute joint and the link it moves.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JointSpec {
     /// Joint name.
     pub name: String,
@@ -63,7 +65,7 @@ pub struct JointSpec {
 }
 
 /// A fixed-base serial arm.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RobotModel {
     /// Model name, e.g. `"ur5e"`.
     pub name: String,
