@@ -147,6 +147,9 @@ struct ServeArgs {
     /// Stop when this pid stops being the parent process (used by auto-started servers).
     #[arg(long, hide = true)]
     exit_with_parent: Option<u32>,
+    /// Register `echogym/Faulty-v0`, which panics on request (tests of fault containment).
+    #[arg(long, hide = true)]
+    fault_injection: bool,
 }
 
 impl ServeArgs {
@@ -170,6 +173,7 @@ impl ServeArgs {
         set(&mut config.ipc.prefix, &self.ipc_prefix);
         set(&mut config.ipc.root, &self.ipc_root);
         config.parent_pid = self.exit_with_parent;
+        config.fault_injection = self.fault_injection;
         config.validate()?;
         Ok(config)
     }

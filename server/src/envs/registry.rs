@@ -41,6 +41,13 @@ impl Default for EnvRegistry {
 }
 
 impl EnvRegistry {
+    /// The default registry plus `echogym/Faulty-v0` (tests of fault containment).
+    pub fn with_fault_injection() -> Self {
+        let mut registry = Self::default();
+        registry.register(Box::new(super::faulty::FaultyEnvFactory::default()));
+        registry
+    }
+
     /// A registry with no envs.
     pub fn empty() -> Self {
         Self {

@@ -438,7 +438,11 @@ impl Dispatcher {
             std::thread::sleep(left);
         }
         let leases = self.leases.len();
-        self.leases.clear();
+        for lease in std::mem::take(&mut self.leases) {
+            self.builder.discard(lease.close());
+        }
+        // Dropping the builder waits for the queued drops (an env that panics while
+        // being dropped is caught there, and the server still exits cleanly).
         tracing::info!(name = %self.options.name, leases, "echogym server stopped");
     }
 }
