@@ -15,7 +15,7 @@
 use std::time::Instant;
 
 use echogym::sim::controller::{Osc, OscParams};
-use echogym::sim::robot::panda;
+use echogym::sim::robot::RobotKind;
 use echogym::sim::scene::{Scene, SceneParams};
 use echogym::sim::torso::{ProbeFace, ProbeKinematics, Torso, TorsoParams};
 use rapier3d::prelude::*;
@@ -269,7 +269,7 @@ fn arm_press_slide() -> (Box<dyn FnMut()>, f64) {
 }
 
 fn export_scene(path: &str, torso: &Torso) {
-    let model = panda();
+    let model = RobotKind::Panda.model();
     let params = SceneParams::default();
     let t = torso.params();
     let robot = json!({

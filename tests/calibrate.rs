@@ -119,7 +119,7 @@ fn calibrate(effects: &[&str], seed: u64) -> Run {
     let read = |p: &Path| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
     };
-    for file in ["report.md", "calibrated.toml", "seed_method.csv"] {
+    for file in ["report.md", "calibrated.toml", "thesis_method.csv"] {
         assert!(out.join(file).exists(), "{file} missing");
     }
     assert_eq!(std::fs::read_dir(out.join("replay")).unwrap().count(), 10);

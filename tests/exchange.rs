@@ -8,7 +8,7 @@ mod common;
 use std::time::Duration;
 
 use common::*;
-use echogym::client::{ConnectOptions, Connection, ControlCallError, LeaseError};
+use echogym_client::{ConnectOptions, Connection, ControlCallError, LeaseError};
 use echogym_protocol::{
     AttachRequest, AutoresetMode, ControlErrorKind, ControlReply, ControlRequest,
 };
@@ -16,7 +16,7 @@ use serde_json::json;
 
 /// Step `lease` (Null env, action size 7) `steps` times checking that every observation
 /// echoes its own action and counts steps; `tag` makes actions unique per caller.
-fn step_and_verify(lease: &mut echogym::client::Lease, steps: usize, tag: f32) {
+fn step_and_verify(lease: &mut echogym_client::Lease, steps: usize, tag: f32) {
     let k = lease.num_envs();
     for step in 1..=steps {
         let actions: Vec<f32> = (0..k * 7)
@@ -131,7 +131,7 @@ fn bad_inputs_get_typed_errors_and_lose_nothing() {
 
     // Control-plane refusals.
     let attach = |env_id: &str, num_envs: usize, config: serde_json::Value| {
-        connection.attach(&echogym::client::AttachOptions {
+        connection.attach(&echogym_client::AttachOptions {
             env_id: env_id.into(),
             num_envs,
             config: config.as_object().cloned().unwrap(),

@@ -12,7 +12,7 @@ use std::os::unix::fs::PermissionsExt;
 use std::time::{Duration, Instant};
 
 use common::*;
-use echogym::client::LeaseError;
+use echogym_client::LeaseError;
 use echogym_protocol::{AutoresetMode, ControlReply, ControlRequest};
 use serde_json::json;
 
@@ -86,7 +86,7 @@ fn child_stepping_forever() {
     let Ok(name) = std::env::var("EG_CHILD_SERVER") else {
         return;
     };
-    let options = echogym::client::ConnectOptions {
+    let options = echogym_client::ConnectOptions {
         name,
         location: echogym_protocol::IpcLocation {
             prefix: std::env::var("EG_CHILD_PREFIX").unwrap(),
@@ -94,7 +94,7 @@ fn child_stepping_forever() {
         },
         ..Default::default()
     };
-    let connection = echogym::client::Connection::connect(&options).unwrap();
+    let connection = echogym_client::Connection::connect(&options).unwrap();
     let mut lease = attach_null(&connection, 4, json!({}), AutoresetMode::SameStep);
     lease.reset(None, None).unwrap();
     println!("attached");

@@ -11,13 +11,14 @@
 //! the torso's unit tests.)
 
 use echogym::sim::controller::{Osc, OscParams};
-use echogym::sim::scene::{RobotKind, Scene, SceneParams};
+use echogym::sim::robot::RobotKind;
+use echogym::sim::scene::{Scene, SceneParams};
 use echogym::sim::torso::{ProbeFace, ProbeKinematics, Torso, TorsoParams};
 use rapier3d::na::DVector;
 
 fn scene(robot: RobotKind, torso: bool) -> Scene {
     Scene::new(SceneParams {
-        robot,
+        robot: robot.into(),
         torso: torso.then(TorsoParams::default),
         ..SceneParams::default()
     })
@@ -413,10 +414,10 @@ fn joint_controllers_track_their_goals() {
 
 #[test]
 fn urdf_arms_load_merge_fixed_joints_and_hold_still() {
-    use echogym::sim::robot::load_urdf;
+    use echogym::sim::robot::{RobotConfig, UrdfRobot, load_urdf};
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/three_link_arm.urdf");
-    let model = load_urdf(&path).unwrap();
+    let model = load_urdf(&path, None).unwrap();
     assert_eq!(model.dof(), 3);
     // The fixed base mount folds into the first joint's origin, the housing's 0.5 kg into
     // link2, the trailing tool0 becomes the flange.
@@ -427,7 +428,7 @@ fn urdf_arms_load_merge_fixed_joints_and_hold_still() {
     assert_eq!(model.joints[1].link.capsules.len(), 2);
 
     let mut scene = Scene::new(SceneParams {
-        robot_urdf: Some(path),
+        robot: RobotConfig::Urdf(UrdfRobot::new(path)),
         torso: None,
         ..SceneParams::default()
     })
@@ -440,7 +441,7 @@ fn urdf_arms_load_merge_fixed_joints_and_hold_still() {
     let drift = max_abs_diff(&scene.arm().q(scene.world()), &q0);
     assert!(drift < 1e-3, "URDF arm drifted {drift} rad");
     let bad = Scene::new(SceneParams {
-        robot_urdf: Some("/nonexistent.urdf".into()),
+        robot: RobotConfig::Urdf(UrdfRobot::new("/nonexistent.urdf")),
         ..SceneParams::default()
     });
     assert!(bad.unwrap_err().to_string().contains("/nonexistent.urdf"));

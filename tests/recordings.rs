@@ -85,7 +85,10 @@ fn rows(n: usize, rate: f64) -> String {
 }
 
 fn error_of(csv: &str, format: &str, listed: &[&str]) -> RecordingsError {
-    let dir = scratch("bad");
+    // A folder per call: tests run in parallel and several of them call this.
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = scratch(&format!("bad-{call}"));
     write_dataset(&dir, csv, format, listed);
     let err = Dataset::read(&dir).unwrap_err();
     std::fs::remove_dir_all(&dir).unwrap();

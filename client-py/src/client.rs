@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use echogym::client::{AttachOptions, ConnectOptions, Connection};
+use echogym_client::{AttachOptions, ConnectOptions, Connection};
 use echogym_protocol::{AutoresetMode, ControlRequest, IpcLocation};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;

@@ -1,6 +1,6 @@
 //! The exception tree, rooted at `echogym.EchogymError`, and the mapping from Rust errors.
 
-use echogym::client::{ConnectError, ControlCallError, LeaseError};
+use echogym_client::{ConnectError, ControlCallError, LeaseError};
 use echogym_protocol::ControlErrorKind;
 use pyo3::create_exception;
 use pyo3::prelude::*;

@@ -2,7 +2,7 @@
 
 use std::sync::{Arc, Mutex};
 
-use echogym::client::Lease;
+use echogym_client::Lease;
 use echogym_protocol::{BatchLayout, ObsField};
 use numpy::{PyReadonlyArray1, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;

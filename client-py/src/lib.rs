@@ -1,9 +1,9 @@
 //! `echogym._native`: the Python extension over echogym's Rust client.
 //!
-//! Thin by design: [`client::NativeClient`] and [`lease::NativeLease`] wrap
-//! `echogym::client`, [`views`] turns the server's shared-memory observation sample into
-//! read-only numpy arrays without copying, [`errors`] defines the exception tree and
-//! [`cli_main`] runs the `echogym` command line in-process (used by the console script and
+//! Thin by design: `client::NativeClient` and `lease::NativeLease` wrap
+//! `echogym_client`, `views` turns the server's shared-memory observation sample into
+//! read-only numpy arrays without copying, `errors` defines the exception tree and
+//! `cli_main` runs the `echogym` command line in-process (used by the console script and
 //! by auto-started private servers).
 
 mod client;
@@ -56,14 +56,14 @@ fn leftover_segments(prefix: &str) -> Vec<String> {
         prefix: prefix.to_owned(),
         ..echogym_protocol::IpcLocation::default()
     };
-    echogym::testing::leftover_segments(&location)
+    echogym_client::testing::leftover_segments(&location)
 }
 
 /// Remove the node counter of `prefix` and the `root` directory (test support; call
 /// only when no server or client of that location runs).
 #[pyfunction]
 fn remove_location(prefix: &str, root: std::path::PathBuf) {
-    echogym::testing::remove_location(&echogym_protocol::IpcLocation {
+    echogym_client::testing::remove_location(&echogym_protocol::IpcLocation {
         prefix: prefix.to_owned(),
         root,
     });

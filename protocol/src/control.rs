@@ -97,6 +97,25 @@ pub struct LeaseStatus {
     pub exchanges: u64,
     /// Seconds since attach.
     pub age_s: f64,
+    /// Env steps served (summed over the batch).
+    #[serde(default)]
+    pub env_steps: u64,
+    /// Seconds since the last exchange (or since attach, before the first).
+    #[serde(default)]
+    pub idle_s: f64,
+}
+
+/// An attach whose envs are being built, as shown by `echogym status`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BuildStatus {
+    /// The env id.
+    pub env_id: String,
+    /// Envs asked for.
+    pub num_envs: usize,
+    /// The waiting client's label.
+    pub client_label: String,
+    /// Seconds since the request.
+    pub waited_s: f64,
 }
 
 /// The server's state.
@@ -120,6 +139,9 @@ pub struct ServerStatus {
     pub reclaimed_leases: u64,
     /// Live leases.
     pub leases: Vec<LeaseStatus>,
+    /// Attaches whose envs are being built.
+    #[serde(default)]
+    pub building: Vec<BuildStatus>,
 }
 
 /// Category of a failed control request.

@@ -8,16 +8,19 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand};
+use echogym_client::{ConnectOptions, Connection, ControlCallError};
 use echogym_protocol::{ControlReply, ControlRequest, IpcLocation};
 
-use crate::client::{ConnectOptions, Connection, ControlCallError};
 use crate::config::ServeConfig;
 use crate::envs::EnvRegistry;
 use crate::transport::Shutdown;
 
 /// echogym: simulation server for robot-assisted ultrasound learning.
+///
+/// Logging: `RUST_LOG` (tracing env-filter syntax, e.g. `echogym=debug`) sets what every
+/// command logs to stderr; `serve --log` overrides it for the server.
 #[derive(Debug, Parser)]
-#[command(name = "echogym", version, about)]
+#[command(name = "echogym", version, about, long_about)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -128,7 +131,8 @@ struct ServeArgs {
     /// Most envs at once.
     #[arg(long)]
     max_envs: Option<usize>,
-    /// Log filter, e.g. `info` or `echogym=debug`.
+    /// Log filter, e.g. `info` or `echogym=debug` (default: `RUST_LOG`, else the config
+    /// file's `log`, else `info`).
     #[arg(long)]
     log: Option<String>,
     /// iceoryx2 file prefix.
@@ -143,11 +147,17 @@ struct ServeArgs {
     /// Stop when this pid stops being the parent process (used by auto-started servers).
     #[arg(long, hide = true)]
     exit_with_parent: Option<u32>,
+    /// Register `echogym/Faulty-v0`, which panics on request (tests of fault containment).
+    #[arg(long, hide = true)]
+    fault_injection: bool,
 }
 
 impl ServeArgs {
     fn resolve(&self) -> Result<ServeConfig, crate::config::ConfigError> {
         let mut config = ServeConfig::load(self.config.as_deref())?;
+        if let Some(filter) = rust_log() {
+            config.log = filter;
+        }
         fn set<T: Clone>(slot: &mut T, value: &Option<T>) {
             if let Some(v) = value {
                 *slot = v.clone();
@@ -163,6 +173,7 @@ impl ServeArgs {
         set(&mut config.ipc.prefix, &self.ipc_prefix);
         set(&mut config.ipc.root, &self.ipc_root);
         config.parent_pid = self.exit_with_parent;
+        config.fault_injection = self.fault_injection;
         config.validate()?;
         Ok(config)
     }
@@ -178,6 +189,10 @@ pub fn main_with_args(args: impl IntoIterator<Item = OsString>) -> u8 {
             return if e.use_stderr() { 2 } else { 0 };
         }
     };
+    if !matches!(cli.command, Command::Serve(_)) {
+        // RUST_LOG=echogym=debug shows e.g. each calibration fit's convergence and time.
+        init_logging(rust_log().as_deref().unwrap_or("warn"));
+    }
     let result = match cli.command {
         Command::Serve(args) => serve(&args),
         Command::Status { target, json } => status(&target, json),
@@ -199,16 +214,24 @@ pub fn main_with_args(args: impl IntoIterator<Item = OsString>) -> u8 {
     }
 }
 
-fn calibrate(args: CalibrateArgs) -> Result<(), String> {
-    use crate::calibrate::{CalibrateOptions, synth};
-    // RUST_LOG=echogym=debug shows each fit's convergence, evaluations and time.
+/// `RUST_LOG`, when set to something.
+fn rust_log() -> Option<String> {
+    std::env::var("RUST_LOG")
+        .ok()
+        .filter(|v| !v.trim().is_empty())
+}
+
+/// Log to stderr with `filter` (a second call in one process, e.g. from Python, keeps the
+/// first subscriber).
+fn init_logging(filter: &str) {
     let _ = tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
-        )
+        .with_env_filter(tracing_subscriber::EnvFilter::new(filter))
         .with_writer(std::io::stderr)
         .try_init();
+}
+
+fn calibrate(args: CalibrateArgs) -> Result<(), String> {
+    use crate::calibrate::{CalibrateOptions, synth};
     if let Some(CalibrateCommand::Synth {
         effects,
         seed,
@@ -259,10 +282,7 @@ fn serve(args: &ServeArgs) -> Result<(), String> {
         print!("{}", config.to_toml());
         return Ok(());
     }
-    let _ = tracing_subscriber::fmt()
-        .with_env_filter(tracing_subscriber::EnvFilter::new(&config.log))
-        .with_writer(std::io::stderr)
-        .try_init();
+    init_logging(&config.log);
     let shutdown = Shutdown::new();
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(signal, shutdown.flag())
@@ -319,13 +339,21 @@ fn status(target: &Target, json: bool) -> Result<(), String> {
     }
     for lease in &status.leases {
         println!(
-            "  lease {:>20}  {:<24} x{:<5} {:>10} exchanges  {:>8.1} s  {}",
+            "  lease {:>20}  {:<28} x{:<5} {:>10} exchanges {:>12} env steps  age {:>8.1} s  idle {:>7.1} s  {}",
             lease.lease_id,
             lease.env_id,
             lease.num_envs,
             lease.exchanges,
+            lease.env_steps,
             lease.age_s,
+            lease.idle_s,
             lease.client_label
+        );
+    }
+    for build in &status.building {
+        println!(
+            "  building {:<28} x{:<5} for {:.1} s  {}",
+            build.env_id, build.num_envs, build.waited_s, build.client_label
         );
     }
     Ok(())

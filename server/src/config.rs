@@ -36,6 +36,9 @@ pub struct ServeConfig {
     /// Stop when this pid is no longer the parent (set for private auto-started servers).
     #[serde(skip)]
     pub parent_pid: Option<u32>,
+    /// Register `echogym/Faulty-v0`, an env that panics on request (tests only).
+    #[serde(skip)]
+    pub fault_injection: bool,
 }
 
 impl Default for ServeConfig {
@@ -50,6 +53,7 @@ impl Default for ServeConfig {
             log: "info".to_owned(),
             ipc: IpcLocation::from_env(),
             parent_pid: None,
+            fault_injection: false,
         }
     }
 }

@@ -8,11 +8,12 @@ use crate::transport::{Dispatcher, Shutdown, StartError};
 /// is requested (signal, `echogym stop`, or the embedding code). Returns once every
 /// lease was told the server stopped and every shared-memory resource was removed.
 pub fn run(config: &ServeConfig, shutdown: Shutdown) -> Result<(), StartError> {
-    let dispatcher = Dispatcher::start(
-        config.dispatcher_options(),
-        EnvRegistry::default(),
-        shutdown,
-    )?;
+    let registry = if config.fault_injection {
+        EnvRegistry::with_fault_injection()
+    } else {
+        EnvRegistry::default()
+    };
+    let dispatcher = Dispatcher::start(config.dispatcher_options(), registry, shutdown)?;
     dispatcher.run();
     Ok(())
 }

@@ -8,7 +8,7 @@ use std::process::{Child, Command, Output, Stdio};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
-use echogym::client::{AttachOptions, ConnectOptions, Connection, Lease};
+use echogym_client::{AttachOptions, ConnectOptions, Connection, Lease};
 use echogym_protocol::{AutoresetMode, IpcLocation};
 
 static NEXT: AtomicUsize = AtomicUsize::new(0);
@@ -179,7 +179,7 @@ pub fn null_obs(lease: &Lease, payload: &[u8], env: usize) -> Vec<f32> {
 pub fn assert_clean_and_remove(location: &IpcLocation) {
     let deadline = Instant::now() + Duration::from_secs(5);
     loop {
-        let left = echogym::testing::leftover_segments(location);
+        let left = echogym_client::testing::leftover_segments(location);
         if left.is_empty() {
             break;
         }
@@ -188,7 +188,7 @@ pub fn assert_clean_and_remove(location: &IpcLocation) {
         }
         std::thread::sleep(Duration::from_millis(20));
     }
-    echogym::testing::remove_location(location);
+    echogym_client::testing::remove_location(location);
 }
 
 /// This test binary, re-run as a child process executing the ignored test `name` with

@@ -1,7 +1,7 @@
 """Reading what ``echogym calibrate DATASET --out OUT`` wrote: the calibrated scene
 (``OUT/calibrated.toml``) as env config, the report (``OUT/report.json``), the replay of
-each recording (``OUT/replay/*.csv``) and the seed's regression points
-(``OUT/seed_method.csv``).
+each recording (``OUT/replay/*.csv``) and the thesis's regression points
+(``OUT/thesis_method.csv``).
 
 Plain data only (dicts and lists of floats); the figures drawn from it are an
 application, :mod:`echogym.apps.calibration_plots`.
@@ -15,7 +15,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-__all__ = ["load_calibration", "load_replay", "load_report", "load_seed_method"]
+__all__ = ["load_calibration", "load_replay", "load_report", "load_thesis_method"]
 
 #: The keys of ``calibrated.toml`` that are env config.
 SCENE_KEYS = ("torso", "breathing", "ft_sensor")
@@ -31,7 +31,7 @@ def load_calibration(path: str | Path) -> dict[str, Any]:
 
 def load_report(out: str | Path) -> dict[str, Any]:
     """``OUT/report.json``: the split, the baseline, the effects named and rejected, the
-    mismatch shares, the improvement on the held-out recordings, the seed's method."""
+    mismatch shares, the improvement on the held-out recordings, the thesis's method."""
     return json.loads((Path(out) / "report.json").read_text())
 
 
@@ -43,10 +43,10 @@ def load_replay(out: str | Path, recording: str) -> dict[str, list[float]]:
     return {k: [float(r[k]) for r in rows] for k in rows[0]} if rows else {}
 
 
-def load_seed_method(out: str | Path) -> dict[str, tuple[list[float], list[float]]]:
-    """The seed's regression points per site: ``(v/r [1/s], F/r [N/m])``."""
+def load_thesis_method(out: str | Path) -> dict[str, tuple[list[float], list[float]]]:
+    """The thesis's regression points per site: ``(v/r [1/s], F/r [N/m])``."""
     points: dict[str, tuple[list[float], list[float]]] = {}
-    with open(Path(out) / "seed_method.csv") as f:
+    with open(Path(out) / "thesis_method.csv") as f:
         for row in csv.DictReader(f):
             xs, ys = points.setdefault(row["site"], ([], []))
             xs.append(float(row["v_over_r"]))

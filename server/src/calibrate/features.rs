@@ -29,17 +29,17 @@ pub struct Series {
     pub site_index: usize,
     /// Protocol name as stated in the dataset.
     pub protocol: String,
-    /// Time [s].
+    /// Time \[s\].
     pub t: Vec<f64>,
-    /// Measured force, world z [N].
+    /// Measured force, world z \[N\].
     pub measured: Vec<f64>,
-    /// Baseline prediction [N].
+    /// Baseline prediction \[N\].
     pub predicted: Vec<f64>,
-    /// Residual `measured − predicted` [N].
+    /// Residual `measured − predicted` \[N\].
     pub residual: Vec<f64>,
     /// Probe touching the skin in the baseline replay.
     pub contact: Vec<bool>,
-    /// Depth below the fitted rest surface [m] (negative above).
+    /// Depth below the fitted rest surface \[m\] (negative above).
     pub depth: Vec<f64>,
     /// Probe vertical velocity [m/s] (z up).
     pub vz: Vec<f64>,
@@ -47,18 +47,18 @@ pub struct Series {
     pub lateral_speed: Vec<f64>,
     /// Probe vertical acceleration [m/s²] (smoothed over ±10 ms).
     pub az: Vec<f64>,
-    /// Sample period [s].
+    /// Sample period \[s\].
     pub dt: f64,
-    /// Measured tangential force, world x and y [N].
+    /// Measured tangential force, world x and y \[N\].
     pub measured_xy: Vec<[f64; 2]>,
-    /// Baseline's tangential force, world x and y [N].
+    /// Baseline's tangential force, world x and y \[N\].
     pub predicted_xy: Vec<[f64; 2]>,
     /// Probe velocity, world x and y [m/s].
     pub vxy: Vec<[f64; 2]>,
     /// Share of the session elapsed at each sample (0 at its first sample, 1 at its
     /// last; see [`SessionClock`]).
     pub session: Vec<f64>,
-    /// Mean probe position in contact, world xy [m] (all samples without contact).
+    /// Mean probe position in contact, world xy \[m\] (all samples without contact).
     pub xy: [f64; 2],
 }
 

@@ -14,7 +14,7 @@
 //!
 //! ```text
 //! z_surface(xy) = nominal + offset + h_site + h_rec + slope·s + ½·curvature·s²,
-//! s = (xy − centre_rec) · along_rec   [m]
+//! s = (xy − centre_rec) · along_rec   \[m\]
 //! ```
 //!
 //! Heights are **measured** from the force's contact onset wherever a recording
@@ -35,16 +35,16 @@ use serde::{Deserialize, Serialize};
 
 use crate::recordings::Dataset;
 
-/// Sideways extent in contact [m] above which a path's slope is fitted.
+/// Sideways extent in contact \[m\] above which a path's slope is fitted.
 pub const SLOPE_EXTENT: f64 = 0.02;
-/// Sideways extent in contact [m] above which a path's curvature is fitted too.
+/// Sideways extent in contact \[m\] above which a path's curvature is fitted too.
 pub const CURVATURE_EXTENT: f64 = 0.04;
-/// Below the nominal surface by this much [m], a sample counts as in contact when the
+/// Below the nominal surface by this much \[m\], a sample counts as in contact when the
 /// geometry is laid out (before any fit).
 const CONTACT_MARGIN: f64 = 0.002;
 /// Prior standard deviations of a path's slope and curvature [1/m].
 pub const PATH_PRIOR: [f64; 2] = [0.3, 10.0];
-/// RMS force [N] over a recording that one prior standard deviation is worth.
+/// RMS force \[N\] over a recording that one prior standard deviation is worth.
 pub const PRIOR_FORCE_N: f64 = 0.05;
 
 /// Where a surface parameter came from.
@@ -68,9 +68,9 @@ pub enum Source {
 pub struct SiteSurface {
     /// Site name.
     pub site: String,
-    /// World xy of the site (the mean contact point of its recordings) [m].
+    /// World xy of the site (the mean contact point of its recordings) \[m\].
     pub origin: [f64; 2],
-    /// Height relative to the model's global surface [m].
+    /// Height relative to the model's global surface \[m\].
     pub height_m: f64,
     /// Where the height came from.
     pub source: Source,
@@ -81,16 +81,16 @@ pub struct SiteSurface {
 pub struct PathSurface {
     /// Recording index.
     pub recording: usize,
-    /// Mean contact point, world xy [m].
+    /// Mean contact point, world xy \[m\].
     pub centre: [f64; 2],
-    /// Height correction of this recording relative to its site [m].
+    /// Height correction of this recording relative to its site \[m\].
     pub height_m: f64,
     /// Where the height correction came from.
     #[serde(default)]
     pub height_source: Source,
     /// Unit direction in world xy the probe moves along.
     pub along: [f64; 2],
-    /// Extent of the contact points along `along` [m].
+    /// Extent of the contact points along `along` \[m\].
     pub extent_m: f64,
     /// Slope along `along` (dz/ds) at the site's origin.
     pub slope: f64,

@@ -35,15 +35,15 @@ pub fn phase(s: &Series, i: usize) -> &'static str {
 pub struct Location {
     /// Recording file.
     pub recording: String,
-    /// Start [s].
+    /// Start \[s\].
     pub t_start: f64,
-    /// End [s].
+    /// End \[s\].
     pub t_end: f64,
     /// Dominant phase in the span.
     pub phase: String,
     /// Share of the total residual energy.
     pub share: f64,
-    /// RMS residual in the span [N].
+    /// RMS residual in the span \[N\].
     pub rms_n: f64,
     /// In words.
     pub description: String,
@@ -58,7 +58,7 @@ pub struct Share {
     pub share: f64,
     /// Share of the samples.
     pub samples: f64,
-    /// RMS residual within [N].
+    /// RMS residual within \[N\].
     pub rms_n: f64,
 }
 

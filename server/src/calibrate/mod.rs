@@ -19,6 +19,7 @@
 //! 6. [`report`]: test before/after, intervals, geometry, verdict, replays.
 
 pub mod baseline;
+pub mod decision;
 pub mod effects;
 pub mod features;
 pub mod fit;
@@ -29,11 +30,11 @@ pub mod noise;
 pub mod onset;
 pub mod replay;
 pub mod report;
-pub mod seed_method;
 pub mod select;
 pub mod session;
 pub mod split;
 pub mod synth;
+pub mod thesis_method;
 pub mod trajectory;
 pub mod unexplained;
 
@@ -131,20 +132,20 @@ pub struct Outcome {
     pub series: Vec<Series>,
     /// Calibrated prediction per recording.
     pub calibrated_fz: Vec<Vec<f64>>,
-    /// Noise floor [N].
+    /// Noise floor \[N\].
     pub noise: f64,
     /// How the noise floor was measured.
     pub noise_source: noise::NoiseSource,
     /// Where the baseline misses.
     pub mismatch: mismatch::Mismatch,
     /// Accepted effects: (name, params, evidence, validation RMSE after the surrogate).
-    pub accepted: Vec<report::Accepted>,
+    pub accepted: Vec<decision::Accepted>,
     /// Rejected candidates with reasons.
-    pub rejected: Vec<report::Rejected>,
+    pub rejected: Vec<decision::Rejected>,
     /// Whether something the catalogue lacks remains, and where.
     pub verdict: unexplained::Verdict,
     /// The seed's regression per site.
-    pub seed_method: Vec<seed_method::SeedFit>,
+    pub thesis_method: Vec<thesis_method::ThesisFit>,
     /// The setup.
     pub setup: Setup,
     /// Contact stiffness of the baseline [N/m].
@@ -222,7 +223,7 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
     } = selected;
 
     progress.stage("writing the report");
-    let seed_fits = seed_method::seed_method(&series, -base.surface_offset);
+    let thesis_fits = thesis_method::thesis_method(&series, -base.surface_offset);
     let outcome = Outcome {
         dataset,
         split,
@@ -239,7 +240,7 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
         accepted,
         rejected,
         verdict,
-        seed_method: seed_fits,
+        thesis_method: thesis_fits,
         setup,
         k_eff,
     };

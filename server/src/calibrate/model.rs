@@ -5,13 +5,13 @@
 
 use crate::recordings::Dataset;
 
+use super::decision::Accepted;
 use super::effects;
 use super::fit::{Bound, Convergence, levenberg_marquardt_blocks};
 use super::geometry::{PATH_PRIOR, PRIOR_FORCE_N, Source};
 use super::replay::{Model, Setup, replay_all};
-use super::report::Accepted;
 
-/// Time constants a relaxation branch may take [s] (the signature's grid spans the same).
+/// Time constants a relaxation branch may take \[s\] (the signature's grid spans the same).
 pub const RELAXATION_TAU_S: [f64; 2] = [0.1, 30.0];
 
 /// Fitting uses at most this many residual samples per second of recording.

@@ -1,4 +1,4 @@
-//! The noise floor σ [N]: how closely any model could follow the measured force.
+//! The noise floor σ \[N\]: how closely any model could follow the measured force.
 //!
 //! Second differences of the force (`Var(Δ²n) = 6σ²`) are right for white noise only: a
 //! sensor's own low-pass, or a log resampled from a lower rate, makes neighbouring
@@ -11,14 +11,14 @@
 
 use super::features::Series;
 
-/// Clearance above the surface [m] for a free-air sample (breathing and surface
+/// Clearance above the surface \[m\] for a free-air sample (breathing and surface
 /// errors stay below it).
 const CLEARANCE: f64 = 0.004;
-/// Free air needed for the free-air estimate [s] (summed over recordings).
+/// Free air needed for the free-air estimate \[s\] (summed over recordings).
 const MIN_FREE_AIR_S: f64 = 1.0;
-/// Stretch length the free-air force is detrended over [s].
+/// Stretch length the free-air force is detrended over \[s\].
 const STRETCH_S: f64 = 0.5;
-/// Rate the second-difference fallback thins the force to [Hz].
+/// Rate the second-difference fallback thins the force to \[Hz\].
 const FALLBACK_RATE_HZ: f64 = 50.0;
 
 /// How σ was measured.
@@ -40,7 +40,7 @@ impl NoiseSource {
     }
 }
 
-/// Noise floor [N] and how it was measured.
+/// Noise floor \[N\] and how it was measured.
 pub fn noise_floor(series: &[Series]) -> (f64, NoiseSource) {
     let mut sum_squares = 0.0;
     let mut count = 0usize;

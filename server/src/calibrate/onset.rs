@@ -5,7 +5,7 @@
 //! height) — which is exactly the effect `site_heterogeneity` must name. Contact onset
 //! tells them apart: a higher skin moves the onset, a stiffer tissue does not. So each
 //! approach from free air gives the height where the force leaves its free-air level:
-//! the force between [`BAND_N`]`[0]` and `[1]` above that level is fitted as a line in the
+//! the force between `BAND_N[0]` and `[1]` above that level is fitted as a line in the
 //! probe height and extrapolated back to the free-air level (a Hunt–Crossley or any
 //! smooth onset; a stiffness scale changes the line's slope, not where it starts). A
 //! recording's surface is the median over its approaches.
@@ -16,9 +16,9 @@
 
 use crate::recordings::Recording;
 
-/// Free-air level: the median force over this first stretch of the recording [s].
+/// Free-air level: the median force over this first stretch of the recording \[s\].
 const FREE_AIR_S: f64 = 0.3;
-/// The onset band above the free-air level [N]: its lower edge is at least this, or
+/// The onset band above the free-air level \[N\]: its lower edge is at least this, or
 /// 5 σ of the free-air force.
 const BAND_N: [f64; 2] = [0.15, 1.5];
 /// Probe speed down [m/s] that counts as an approach.

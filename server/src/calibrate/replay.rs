@@ -20,7 +20,7 @@ use crate::sim::torso::{
     SiteStiffness, Torso, TorsoParams,
 };
 
-/// Simulation step of replays [s].
+/// Simulation step of replays \[s\].
 pub const REPLAY_DT: f64 = 0.002;
 
 /// Share of the torso's particle mass kept in replays. The particle torso's columns of
@@ -37,18 +37,18 @@ pub struct Model {
     pub stiffness: f64,
     /// Seed-term damping [1/s].
     pub damping: f64,
-    /// True surface minus the dataset's nominal surface [m].
+    /// True surface minus the dataset's nominal surface \[m\].
     pub surface_offset: f64,
     /// Power-spring exponent (1: linear).
     pub exponent: f64,
     /// Maxwell branch, if any.
     pub relaxation: Option<Relaxation>,
-    /// Breathing: frequency [Hz] and amplitude [m]; phases per recording in
+    /// Breathing: frequency \[Hz\] and amplitude \[m\]; phases per recording in
     /// `breathing_phase`.
     pub breathing: Option<(f64, f64)>,
-    /// Breathing phase at each recording's start [rad], by recording index.
+    /// Breathing phase at each recording's start \[rad\], by recording index.
     pub breathing_phase: Vec<f64>,
-    /// Breathing rate of each recording [Hz] (the rate drifts between recordings; empty:
+    /// Breathing rate of each recording \[Hz\] (the rate drifts between recordings; empty:
     /// the common rate).
     pub breathing_freq: Vec<f64>,
     /// Breathing rise at the torso's edges as a share of the centre's (see
@@ -59,16 +59,16 @@ pub struct Model {
     /// the recording; empty: steady).
     #[serde(default)]
     pub breathing_rate_slope: Vec<f64>,
-    /// Tissue mass moving with the probe [kg].
+    /// Tissue mass moving with the probe \[kg\].
     pub moving_mass: f64,
-    /// Constant force offset of the sensor, world z [N].
+    /// Constant force offset of the sensor, world z \[N\].
     pub bias: f64,
-    /// Sensor delay [s].
+    /// Sensor delay \[s\].
     pub delay: f64,
-    /// Sensor low-pass cut-off [Hz] (0: none).
+    /// Sensor low-pass cut-off \[Hz\] (0: none).
     #[serde(default)]
     pub filter_cutoff_hz: f64,
-    /// Change of the sensor's fz bias from the session's first sample to its last [N]
+    /// Change of the sensor's fz bias from the session's first sample to its last \[N\]
     /// (`bias` is the value at the first).
     #[serde(default)]
     pub bias_drift_n: f64,
@@ -136,9 +136,9 @@ impl Model {
 pub struct Setup {
     /// The torso before calibration (dataset's `torso` overrides on the defaults).
     pub torso: TorsoParams,
-    /// Nominal surface height [m].
+    /// Nominal surface height \[m\].
     pub nominal_surface_z: f64,
-    /// Torso centre [m].
+    /// Torso centre \[m\].
     pub center_xy: [f64; 2],
     /// Site name → world xy of the recordings made there (mean position in contact).
     pub sites: Vec<(String, [f64; 2])>,
@@ -187,13 +187,13 @@ impl Setup {
 /// One replay's output on the recording's time base.
 #[derive(Debug, Clone, Default)]
 pub struct Prediction {
-    /// Predicted force along world z [N] (pressing > 0), sensor effects included.
+    /// Predicted force along world z \[N\] (pressing > 0), sensor effects included.
     pub fz: Vec<f64>,
-    /// Predicted tangential force, world x and y [N], sensor effects included.
+    /// Predicted tangential force, world x and y \[N\], sensor effects included.
     pub fxy: Vec<[f64; 2]>,
     /// Whether the probe touched the skin (sensor effects excluded).
     pub contact: Vec<bool>,
-    /// Depth of the probe below the model's rest surface [m] (negative above).
+    /// Depth of the probe below the model's rest surface \[m\] (negative above).
     pub depth: Vec<f64>,
 }
 
@@ -378,7 +378,7 @@ mod tests {
         }
     }
 
-    /// Force amplitude in phase with the depth over the last 2 s [N].
+    /// Force amplitude in phase with the depth over the last 2 s \[N\].
     fn amplitude(pred: &Prediction, freq_hz: f64) -> f64 {
         let w = 2.0 * std::f64::consts::PI * freq_hz;
         let (mut s, mut c) = (0.0, 0.0);

@@ -1,8 +1,8 @@
 //! Outputs of a calibration run (in OUT_DIR): `report.json`
 //! (`echogym-calibration-report/1`), `report.md`, `replay/<recording>.csv`
 //! (`t,fz_measured,fz_baseline,fz_calibrated`), `calibrated.toml` (the scene config of the
-//! calibrated torso, breathing and sensor), and `seed_method.csv` (the points of the
-//! seed's regression, for the plot). The PNG plots are drawn from these files by the
+//! calibrated torso, breathing and sensor), and `thesis_method.csv` (the points of the
+//! thesis's regression, for the plot). The PNG plots are drawn from these files by the
 //! Python package (`echogym calibrate` from the virtualenv draws them).
 
 use std::fmt::Write as _;
@@ -21,36 +21,6 @@ use crate::sim::torso::{BreathingParams, TorsoParams};
 
 /// Report schema name.
 pub const SCHEMA: &str = "echogym-calibration-report/1";
-
-/// An accepted effect.
-#[derive(Debug, Clone, Serialize)]
-pub struct Accepted {
-    /// Catalogue name.
-    pub name: &'static str,
-    /// Parameters (from the signature; the refitted values are in `calibrated`).
-    pub params: serde_json::Map<String, serde_json::Value>,
-    /// Why it was accepted.
-    pub evidence: String,
-    /// Held-out RMSE with its signature added [N].
-    pub heldout_rmse_n: f64,
-    /// Relative validation RMSE reduction of its signature.
-    #[serde(skip)]
-    pub gain: f64,
-    /// The baseline's readjustment fitted with its signature.
-    #[serde(skip)]
-    pub readjust: effects::Readjust,
-}
-
-/// A candidate not accepted.
-#[derive(Debug, Clone, Serialize)]
-pub struct Rejected {
-    /// Catalogue name.
-    pub name: &'static str,
-    /// Why.
-    pub why: String,
-    /// Share of the validation excess error its signature explained (none: no signature).
-    pub explained: Option<f64>,
-}
 
 /// The calibrated scene as TOML sections usable as env config keys.
 #[derive(Debug, Serialize)]
@@ -122,7 +92,7 @@ fn report_context<'a>(o: &Outcome, site_stiffness: &'a [(String, f64)]) -> Repor
     }
 }
 
-/// RMSE before (baseline) and after (calibrated) over each set of recordings [N].
+/// RMSE before (baseline) and after (calibrated) over each set of recordings \[N\].
 #[derive(Debug, Clone, Copy)]
 struct Figures {
     train: [f64; 2],
@@ -264,7 +234,7 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
             "thresholds": {"ratio": unexplained::RATIO, "autocorrelation": unexplained::AUTOCORRELATION},
         },
         "unexplained": o.verdict.spans,
-        "seed_method": o.seed_method,
+        "thesis_method": o.thesis_method,
     });
     let path = out.join("report.json");
     std::fs::write(
@@ -297,9 +267,9 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
         std::fs::write(&path, text).map_err(io_error(&path))?;
     }
 
-    let path = out.join("seed_method.csv");
+    let path = out.join("thesis_method.csv");
     let mut text = String::from("site,v_over_r,f_over_r\n");
-    for fit in &o.seed_method {
+    for fit in &o.thesis_method {
         for (x, y) in &fit.points {
             let _ = writeln!(text, "{},{x:.5},{y:.3}", fit.site);
         }
@@ -557,9 +527,9 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
     }
     let _ = writeln!(
         s,
-        "\n## The seed's method, for comparison\n\n| site | slope b [N·s/m] | intercept k [N/m] | r² | k/b [1/s] |\n|---|---:|---:|---:|---:|"
+        "\n## The thesis's method, for comparison\n\n| site | slope b [N·s/m] | intercept k [N/m] | r² | k/b [1/s] |\n|---|---:|---:|---:|---:|"
     );
-    for f in &o.seed_method {
+    for f in &o.thesis_method {
         let _ = writeln!(
             s,
             "| {} | {:.1} | {:.0} | {:.2} | {:.1} |",

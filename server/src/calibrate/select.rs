@@ -13,7 +13,7 @@ use super::features::{Series, rmse};
 use super::model::{FitDiagnostics, Free, apply_effects, fit_model};
 use super::replay::{self, Model, Setup, replay_all};
 use super::split::Split;
-use super::{baseline, report, series_of, unexplained};
+use super::{baseline, decision, series_of, unexplained};
 
 /// Validation RMSE reduction the first accepted effect needs (relative).
 pub const FIRST_GAIN: f64 = 0.05;
@@ -43,7 +43,7 @@ pub struct Inputs<'a> {
     pub series: &'a [Series],
     /// The baseline's predictions.
     pub predictions: &'a [replay::Prediction],
-    /// Noise floor [N].
+    /// Noise floor \[N\].
     pub noise: f64,
     /// Contact stiffness per unit of the model's stiffness.
     pub k_per_unit: f64,
@@ -56,9 +56,9 @@ pub struct Selection {
     /// Its fit's diagnostics (the baseline's when nothing was named).
     pub calibrated_fit: FitDiagnostics,
     /// Named effects.
-    pub accepted: Vec<report::Accepted>,
+    pub accepted: Vec<decision::Accepted>,
     /// Candidates not named, with reasons.
-    pub rejected: Vec<report::Rejected>,
+    pub rejected: Vec<decision::Rejected>,
     /// Whether something the catalogue lacks remains.
     pub verdict: unexplained::Verdict,
     /// Calibrated prediction per recording.
@@ -93,10 +93,10 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
     let mut calibrated_fit = baseline_fit.clone();
     let mut current: Vec<Series> = series.to_vec();
     let mut current_predictions = predictions.to_vec();
-    let mut accepted: Vec<report::Accepted> = Vec::new();
+    let mut accepted: Vec<decision::Accepted> = Vec::new();
     let mut excluded: Vec<&'static str> = Vec::new();
-    let mut failed: Vec<report::Rejected> = Vec::new();
-    let mut rejected: Vec<report::Rejected> = Vec::new();
+    let mut failed: Vec<decision::Rejected> = Vec::new();
+    let mut rejected: Vec<decision::Rejected> = Vec::new();
     let mut threshold = FIRST_GAIN;
     for _attempt in 0..6 {
         let k_now = calibrated.stiffness * k_per_unit;
@@ -137,7 +137,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
         // and the better validation gain wins.
         // (Not between an effect and one it contains: the contains rule decided those.)
         let contains = |a: &str, b: &str| effects::named(a).and_then(|e| e.contains()) == Some(b);
-        let contenders: Vec<&report::Accepted> = found
+        let contenders: Vec<&decision::Accepted> = found
             .iter()
             .take(2)
             .filter(|c| c.gain >= CLOSE_CALL * first.gain)
@@ -217,7 +217,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
             threshold *= ESCALATION;
         } else {
             excluded.push(trial.effect.name);
-            failed.push(report::Rejected {
+            failed.push(decision::Rejected {
                 name: trial.effect.name,
                 why: format!(
                     "{}, but modelled in the simulator the validation RMSE went {before:.3} → {after:.3} N ({:.0} % of the excess; needs {:.1} % lower{})",
@@ -270,23 +270,23 @@ fn readjust(model: &mut Model, r: effects::Readjust, k_now: f64) {
 /// One round of selection.
 struct Round {
     /// Effects whose signatures passed, best first.
-    passed: Vec<report::Accepted>,
+    passed: Vec<decision::Accepted>,
     /// Effects whose signatures passed the gains but explained between half the share
     /// and the share the gate needs, best first.
-    near: Vec<report::Accepted>,
+    near: Vec<decision::Accepted>,
     /// Why the others (and the near misses) failed.
-    rejected: Vec<report::Rejected>,
+    rejected: Vec<decision::Rejected>,
 }
 
 /// An effect modelled in the simulator and refitted, with its validation figures.
 struct Trial {
-    effect: report::Accepted,
+    effect: decision::Accepted,
     /// The accepted effect it replaces (one it contains).
     replaced: Option<&'static str>,
     model: Model,
     diagnostics: FitDiagnostics,
     predictions: Vec<replay::Prediction>,
-    /// Validation RMSE before and after, in the effect's channel [N].
+    /// Validation RMSE before and after, in the effect's channel \[N\].
     before: f64,
     after: f64,
 }
@@ -346,7 +346,7 @@ fn select_effects(
         let before_v = rmse_where(channel, validation, &null);
         let before_t = rmse_where(channel, train, &null);
         let Some(sig) = effect.signature(series, train, base) else {
-            rejected.push(report::Rejected {
+            rejected.push(decision::Rejected {
                 name,
                 why: "signature absent (fitted with the wrong sign, too small, or failing its specificity test)".into(),
                 explained: None,
@@ -376,7 +376,7 @@ fn select_effects(
             if gains && explained >= MIN_EXPLAINED / 2.0 && before_v > unexplained::RATIO * noise {
                 near.push((gain_v, sig.clone(), before_v, after_v, gain_t));
             }
-            rejected.push(report::Rejected {
+            rejected.push(decision::Rejected {
                 name,
                 why: format!(
                     "validation RMSE {before_v:.3} → {after_v:.3} N ({:+.1} %, {:.0} % of the excess over noise), train {:+.1} %: needs {:.1} % and {:.0} %",
@@ -406,7 +406,7 @@ fn select_effects(
         f64,
         f64,
         f64,
-    )| report::Accepted {
+    )| decision::Accepted {
         name: sig.name,
         params: sig.params,
         evidence: format!(

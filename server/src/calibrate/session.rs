@@ -8,15 +8,15 @@
 
 use crate::recordings::Dataset;
 
-/// Key of a recording's start on the session clock in `dataset.json` [s].
+/// Key of a recording's start on the session clock in `dataset.json` \[s\].
 pub const SESSION_TIME_KEY: &str = "session_time_s";
 
 /// The session clock of a dataset.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SessionClock {
-    /// Per recording: add to the recording's own time to get session time [s].
+    /// Per recording: add to the recording's own time to get session time \[s\].
     pub offset: Vec<f64>,
-    /// Session time of the session's first and last sample [s].
+    /// Session time of the session's first and last sample \[s\].
     pub span: [f64; 2],
 }
 
@@ -77,7 +77,7 @@ impl SessionClock {
         if b > a { (o + t - a) / (b - a) } else { 0.0 }
     }
 
-    /// The session's length [s].
+    /// The session's length \[s\].
     pub fn length(&self) -> f64 {
         (self.span[1] - self.span[0]).max(0.0)
     }

@@ -9,7 +9,7 @@
 //! protocols with exactly two give one each, alternately to validation and test (seeded
 //! order), so each kind of excitation is held out somewhere while every protocol keeps a
 //! training recording. (Sending a pair of slides' held-out one to validation, where
-//! friction is chosen, is written but off: see [`SLIDES_TO_VALIDATION`].) A recording is never held out if it is its site's last training
+//! friction is chosen, is written but off: see `SLIDES_TO_VALIDATION`.) A recording is never held out if it is its site's last training
 //! recording. Segments of one file split at a gap stay together. With nothing held out
 //! that way, a third of the recordings are (half to
 //! validation, half to test), and with two recordings one trains and one validates.
@@ -130,9 +130,9 @@ pub fn split(dataset: &Dataset, seed: u64) -> Split {
 /// lands in validation by the seeded alternation.
 const SLIDES_TO_VALIDATION: bool = false;
 
-/// Sideways span in contact that makes a recording a slide [m].
+/// Sideways span in contact that makes a recording a slide \[m\].
 const SLIDE_SPAN_M: f64 = 0.01;
-/// Force that counts as contact for it [N].
+/// Force that counts as contact for it \[N\].
 const SLIDE_CONTACT_N: f64 = 0.5;
 
 /// Whether the probe spans ≥ 1 cm sideways (in x or y) while pressing (a span, not a

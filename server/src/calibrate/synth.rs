@@ -57,11 +57,11 @@ const GEL_FRICTION: f64 = 0.1;
 
 /// Torso centre of generated datasets [m, world xy].
 const CENTER_XY: [f64; 2] = [0.0, 0.0];
-/// Nominal surface height of generated datasets [m].
+/// Nominal surface height of generated datasets \[m\].
 const NOMINAL_Z: f64 = 0.905;
-/// Reference depth of the nonlinear spring [m].
+/// Reference depth of the nonlinear spring \[m\].
 const NONLINEAR_REFERENCE_DEPTH: f64 = 0.01;
-/// Internal integration step [s].
+/// Internal integration step \[s\].
 const TRUTH_DT: f64 = 0.000_25;
 
 /// Why a dataset could not be generated.
@@ -95,11 +95,11 @@ pub struct Truth {
     pub stiffness_n_per_m: f64,
     /// Kelvin–Voigt damping [N·s/m].
     pub damping_n_s_per_m: f64,
-    /// Inherent moving tissue mass [kg].
+    /// Inherent moving tissue mass \[kg\].
     pub base_moving_mass_kg: f64,
-    /// True surface minus nominal surface [m].
+    /// True surface minus nominal surface \[m\].
     pub surface_offset_m: f64,
-    /// Force noise standard deviation [N].
+    /// Force noise standard deviation \[N\].
     pub noise_n: f64,
     /// The generator's seed.
     pub seed: u64,
@@ -125,15 +125,15 @@ struct TruthModel {
     surface_z: f64,
     /// Coulomb coefficient and viscous friction [N·s/m].
     friction: (f64, f64),
-    /// Sensor low-pass cut-off [Hz] (0: none).
+    /// Sensor low-pass cut-off \[Hz\] (0: none).
     filter_hz: f64,
-    /// Sensor bias at the session's start and its change over the session [N].
+    /// Sensor bias at the session's start and its change over the session \[N\].
     drift: (f64, f64),
     /// Extra damping at 10 mm over the linear damping, and its depth exponent.
     depth_damping: (f64, f64),
 }
 
-/// One probe trajectory: `t ↦ (x, y, z)` [m] at 0.25 ms resolution.
+/// One probe trajectory: `t ↦ (x, y, z)` \[m\] at 0.25 ms resolution.
 struct Path3 {
     p: Vec<[f64; 3]>,
 }
@@ -185,7 +185,7 @@ impl PathBuilder {
         self
     }
 
-    /// Depth oscillation around the current point: amplitude [m], frequency sweep.
+    /// Depth oscillation around the current point: amplitude \[m\], frequency sweep.
     fn chirp(&mut self, amplitude: f64, f0: f64, f1: f64, seconds: f64) -> &mut Self {
         let at = self.last();
         let n = (seconds / TRUTH_DT).round() as usize;

@@ -16,7 +16,7 @@
 
 use crate::recordings::Recording;
 
-/// Width of the Gaussian weights [s] (≈ 20 Hz: well above the motion, below the noise).
+/// Width of the Gaussian weights \[s\] (≈ 20 Hz: well above the motion, below the noise).
 pub const SMOOTHING_S: f64 = 0.01;
 /// The fit uses samples within this many σ.
 const REACH: f64 = 3.0;

@@ -21,7 +21,7 @@ use super::mismatch;
 pub const RATIO: f64 = 1.5;
 /// Lag-1 autocorrelation at 50 ms above which the residual is structured.
 pub const AUTOCORRELATION: f64 = 0.5;
-/// Spacing of the whiteness test [s].
+/// Spacing of the whiteness test \[s\].
 const WHITENESS_SPACING_S: f64 = 0.05;
 /// Spans listed at most, and the share of the residual energy each must carry.
 const MAX_SPANS: usize = 6;

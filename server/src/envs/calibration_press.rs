@@ -18,8 +18,8 @@
 //! ## Observation space
 //! `Dict` of `observations` plus camera images (and the B-mode `ultrasound` image when
 //! configured). `task_errors` (4): depth of the tip below
-//! the rest surface [m], target depth of the protocol now [m], their difference [m],
-//! contact force along the probe axis [N].
+//! the rest surface \[m\], target depth of the protocol now \[m\], their difference \[m\],
+//! contact force along the probe axis \[N\].
 //!
 //! ## Rewards
 //! `exp(−(200·(depth − target))²)`: 1 on the protocol's depth profile.
@@ -56,7 +56,7 @@ pub const CALIBRATION_PRESS_ID: &str = "echogym/CalibrationPress-v0";
 /// Integral gain of the scripted press's depth loop [1/s].
 const PRESS_INTEGRAL_GAIN: f64 = 20.0;
 
-/// The seed's five sites and their offsets from the torso's centre [m].
+/// The seed's five sites and their offsets from the torso's centre \[m\].
 pub const SITES: [(&str, [f64; 2]); 5] = [
     ("upper_left", [-0.06, 0.08]),
     ("upper_right", [0.06, 0.08]),
@@ -91,13 +91,13 @@ pub struct CalibrationPressConfig {
     pub site: Site,
     /// Run the built-in protocol, ignoring actions. Default true.
     pub scripted: bool,
-    /// Depth below the rest surface at the bottom of the press [m]. Default 0.015.
+    /// Depth below the rest surface at the bottom of the press \[m\]. Default 0.015.
     pub press_depth: f64,
     /// Descent and withdrawal speed [m/s]. Default 0.01.
     pub press_speed: f64,
-    /// Hold at depth [s]. Default 1.
+    /// Hold at depth \[s\]. Default 1.
     pub hold_time: f64,
-    /// Tip height above the surface at the start [m]. Default 0.005.
+    /// Tip height above the surface at the start \[m\]. Default 0.005.
     pub start_height: f64,
 }
 
@@ -183,7 +183,7 @@ pub struct CalibrationPress {
 }
 
 impl CalibrationPress {
-    /// Target depth below the rest surface at time `t` [m] (negative: above) and the
+    /// Target depth below the rest surface at time `t` \[m\] (negative: above) and the
     /// protocol phase (0 descend, 1 hold, 2 withdraw, 3 done).
     fn profile(&self, c: &CalibrationPressConfig, t: f64) -> (f64, u8) {
         let travel = self.start_height + c.press_depth;

@@ -7,6 +7,8 @@ pub mod arena;
 pub mod calibration_press;
 mod config;
 mod env;
+mod factory;
+mod faulty;
 mod null;
 pub mod push_cube;
 mod registry;
@@ -14,5 +16,7 @@ pub mod ultrasound_scan;
 
 pub use config::{EnvConfigError, parse_config};
 pub use env::{Env, EnvOutput, Transition};
+pub use factory::{EnvBuildError, EnvFactory};
+pub use faulty::{FAULTY_ENV_ID, FaultyConfig, FaultyEnvFactory, PanicIn};
 pub use null::{NULL_ENV_ID, NullConfig, NullEnvFactory};
-pub use registry::{EnvFactory, EnvRegistry, UnknownEnv};
+pub use registry::{EnvRegistry, UnknownEnv};

@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use super::config::{EnvConfigError, check_range, parse_config};
 use super::env::{Env, EnvOutput, Transition};
-use super::registry::EnvFactory;
+use super::factory::{EnvBuildError, EnvFactory};
 
 /// The registered id.
 pub const NULL_ENV_ID: &str = "echogym/Null-v0";
@@ -87,10 +87,10 @@ impl EnvFactory for NullEnvFactory {
             .build())
     }
 
-    fn make(&self, spec: &EnvSpec) -> Box<dyn Env> {
-        let config: NullConfig =
-            serde_json::from_value(spec.config.clone()).expect("spec holds a validated config");
-        Box::new(NullEnv::new(config))
+    fn make(&self, spec: &EnvSpec) -> Result<Box<dyn Env>, EnvBuildError> {
+        let config: NullConfig = serde_json::from_value(spec.config.clone())
+            .map_err(|e| EnvBuildError::new(NULL_ENV_ID, e))?;
+        Ok(Box::new(NullEnv::new(config)))
     }
 }
 
@@ -165,7 +165,7 @@ mod tests {
 
     fn run(seed: u64) -> Vec<f32> {
         let spec = NullEnvFactory.spec(&serde_json::Map::new()).unwrap();
-        let mut env = NullEnvFactory.make(&spec);
+        let mut env = NullEnvFactory.make(&spec).unwrap();
         let mut record = vec![0u8; spec.obs_record_bytes];
         let mut info = vec![0.0f32; 1];
         let mut out = EnvOutput::new(&spec.observation, &mut record, &mut info);

@@ -12,7 +12,7 @@
 //! ## Observation space
 //! `Dict` of `observations` (default `joint_pos`, `joint_vel`, `probe_pose`, `probe_vel`,
 //! `ft`, `contact`, `task_errors`) plus camera images. `task_errors` (12): cube position
-//! [m], goal position [m], goal minus cube [m], cube minus probe tip [m].
+//! \[m\], goal position \[m\], goal minus cube \[m\], cube minus probe tip \[m\].
 //!
 //! ## Rewards
 //! The report's four parts (chapter 4.1.3: approaching, touching, pushing, success):
@@ -58,13 +58,13 @@ pub struct PushCubeConfig {
     pub cube: BoxObjectParams,
     /// Centre of the region the cube starts in [m, world xy]. Default (0.0, 0.0).
     pub cube_region_center: [f64; 2],
-    /// Half size of that region [m]. Default (0.05, 0.08).
+    /// Half size of that region \[m\]. Default (0.05, 0.08).
     pub cube_region_half: [f64; 2],
-    /// Distance of the goal from the cube's start [m]. Default [0.10, 0.18].
+    /// Distance of the goal from the cube's start \[m\]. Default [0.10, 0.18].
     pub goal_distance: [f64; 2],
-    /// Success when the cube's centre is this close to the goal [m]. Default 0.03.
+    /// Success when the cube's centre is this close to the goal \[m\]. Default 0.03.
     pub goal_tolerance: f64,
-    /// Probe face height above the table at the start [m]. Default 0.1.
+    /// Probe face height above the table at the start \[m\]. Default 0.1.
     pub start_height: f64,
 }
 

@@ -4,33 +4,14 @@
 
 use std::collections::BTreeMap;
 
-use echogym_protocol::{EnvInfo, EnvSpec};
+use echogym_protocol::EnvInfo;
 
 use super::arena::ArenaFactory;
 use super::calibration_press::CalibrationPress;
-use super::config::EnvConfigError;
-use super::env::Env;
+use super::factory::EnvFactory;
 use super::null::NullEnvFactory;
 use super::push_cube::PushCube;
 use super::ultrasound_scan::UltrasoundScan;
-
-/// Builds envs of one id.
-pub trait EnvFactory: Send + Sync {
-    /// Versioned id, e.g. `echogym/Null-v0`.
-    fn id(&self) -> &'static str;
-
-    /// One-line description.
-    fn description(&self) -> &'static str;
-
-    /// Validate `config` and resolve the spec (defaults filled into `spec.config`).
-    fn spec(
-        &self,
-        config: &serde_json::Map<String, serde_json::Value>,
-    ) -> Result<EnvSpec, EnvConfigError>;
-
-    /// Build one env from a spec this factory resolved.
-    fn make(&self, spec: &EnvSpec) -> Box<dyn Env>;
-}
 
 /// No env is registered under an id.
 #[derive(Debug, thiserror::Error, Clone, PartialEq, Eq)]
@@ -60,6 +41,13 @@ impl Default for EnvRegistry {
 }
 
 impl EnvRegistry {
+    /// The default registry plus `echogym/Faulty-v0` (tests of fault containment).
+    pub fn with_fault_injection() -> Self {
+        let mut registry = Self::default();
+        registry.register(Box::new(super::faulty::FaultyEnvFactory::default()));
+        registry
+    }
+
     /// A registry with no envs.
     pub fn empty() -> Self {
         Self {

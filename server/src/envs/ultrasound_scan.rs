@@ -20,9 +20,9 @@
 //! A `Dict` of the fields in `observations` (default `joint_pos`, `joint_vel`,
 //! `probe_pose`, `probe_vel`, `ft`, `contact`, `task_errors`) plus camera images, and
 //! with `ultrasound` set the probe's B-mode image (`ultrasound`, uint8 `[rows, lines]`;
-//! `us_*` info; docs/ultrasound.md). `task_errors` (8): tip minus target point `[dx, dy, dz]` [m] (target z = the skin's
-//! rest height), smoothed contact force minus target [N], mean speed minus target
-//! [m/s], orientation error [rad], the target point's velocity `[vx, vy]` [m/s].
+//! `us_*` info; docs/ultrasound.md). `task_errors` (8): tip minus target point `[dx, dy, dz]` \[m\] (target z = the skin's
+//! rest height), smoothed contact force minus target \[N\], mean speed minus target
+//! [m/s], orientation error \[rad\], the target point's velocity `[vx, vy]` [m/s].
 //!
 //! ## Rewards
 //! The seed's five shaped terms, each `R·exp(−e)` with `e` a weighted squared error
@@ -124,15 +124,15 @@ pub enum TrajectoryKind {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct UltrasoundScanConfig {
-    /// Contact force to hold along the probe axis [N]. Default 5 (the seed's).
+    /// Contact force to hold along the probe axis \[N\]. Default 5 (the seed's).
     pub target_force: f64,
     /// Sweep speed [m/s]. Default 0.04 (the seed's).
     pub target_speed: f64,
     /// Trajectory kind. Default `random`.
     pub trajectory: TrajectoryKind,
-    /// Clearance of the trajectory from the top's edges [m]. Default 0.03.
+    /// Clearance of the trajectory from the top's edges \[m\]. Default 0.03.
     pub edge_margin: f64,
-    /// Height of the probe face above the skin at the start [m]. Default 0.005.
+    /// Height of the probe face above the skin at the start \[m\]. Default 0.005.
     pub start_height: f64,
     /// Reward weights.
     pub reward: ScanRewardWeights,
@@ -145,7 +145,7 @@ pub struct UltrasoundScanConfig {
     /// Terminate when `orientation_error·angle` exceeds this while touching. Default
     /// 0.1 (the seed's).
     pub orientation_error_threshold: f64,
-    /// Contact may be lost this long [s] after the first touch before the episode
+    /// Contact may be lost this long \[s\] after the first touch before the episode
     /// terminates. Default 0.05 (the seed: 0, one MuJoCo step; a 2 ms bounce of the
     /// stiff contact would end episodes).
     pub contact_loss_grace: f64,
@@ -553,7 +553,7 @@ impl Task for UltrasoundScan {
     }
 }
 
-/// Angle between the probe's orientation and upright [rad].
+/// Angle between the probe's orientation and upright \[rad\].
 fn orientation_error(rotation: Rotation) -> f64 {
     (upright() * rotation.inverse()).to_scaled_axis().length() as f64
 }
@@ -600,9 +600,9 @@ pub(crate) fn place_arm(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::envs::EnvFactory;
     use crate::envs::arena::{ArenaEnv, ArenaFactory};
     use crate::envs::env::{Env, EnvOutput};
-    use crate::envs::registry::EnvFactory;
 
     fn config(json: serde_json::Value) -> serde_json::Map<String, serde_json::Value> {
         json.as_object().unwrap().clone()

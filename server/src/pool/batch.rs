@@ -6,6 +6,7 @@
 //! observation sample into per-env jobs → step/reset in parallel → report.
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use echogym_protocol::{
@@ -13,7 +14,7 @@ use echogym_protocol::{
 };
 
 use super::workers::WorkerPool;
-use crate::envs::{Env, EnvFactory, EnvOutput, Transition};
+use crate::envs::{Env, EnvBuildError, EnvFactory, EnvOutput, Transition};
 
 /// Why an exchange was refused or failed. Nothing was stepped unless `status` is
 /// `EnvFailure`.
@@ -81,6 +82,47 @@ pub struct EnvBatch {
     step_cost_ns: f64,
 }
 
+/// Why a batch was not built.
+#[derive(Debug, thiserror::Error)]
+pub enum BatchBuildError {
+    /// The batch does not fit a sample layout.
+    #[error(transparent)]
+    Layout(#[from] LayoutError),
+    /// An env could not be built.
+    #[error("env {index} of the batch: {source}")]
+    Env {
+        /// Its index in the batch.
+        index: usize,
+        /// Why.
+        source: EnvBuildError,
+    },
+    /// Building an env panicked (a bug, reported rather than taking the server down).
+    #[error("env {index} of the batch panicked while being built: {message}")]
+    Panicked {
+        /// Its index in the batch.
+        index: usize,
+        /// The panic's message.
+        message: String,
+    },
+    /// The build was cancelled (its client died or gave up waiting).
+    #[error("cancelled after {built} of {wanted} envs")]
+    Cancelled {
+        /// Envs built before the cancellation was seen.
+        built: usize,
+        /// Envs asked for.
+        wanted: usize,
+    },
+}
+
+/// The message of a caught panic.
+pub(crate) fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| (*s).to_owned())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "(no message)".to_owned())
+}
+
 impl EnvBatch {
     /// Build `num_envs` envs of `spec` (resolved by `factory`).
     pub fn new(
@@ -88,15 +130,40 @@ impl EnvBatch {
         spec: EnvSpec,
         num_envs: usize,
         mode: AutoresetMode,
-    ) -> Result<Self, LayoutError> {
+    ) -> Result<Self, BatchBuildError> {
+        Self::build(factory, spec, num_envs, mode, &AtomicBool::new(false))
+    }
+
+    /// [`Self::new`], checking `cancel` between envs (a big batch takes seconds) and
+    /// catching a panic in any env's construction.
+    pub fn build(
+        factory: &dyn EnvFactory,
+        spec: EnvSpec,
+        num_envs: usize,
+        mode: AutoresetMode,
+        cancel: &AtomicBool,
+    ) -> Result<Self, BatchBuildError> {
         let layout = BatchLayout::new(&spec, num_envs, mode)?;
-        let slots = (0..num_envs)
-            .map(|_| Slot {
-                env: factory.make(&spec),
+        let mut slots = Vec::with_capacity(num_envs);
+        for index in 0..num_envs {
+            if cancel.load(Ordering::Relaxed) {
+                return Err(BatchBuildError::Cancelled {
+                    built: index,
+                    wanted: num_envs,
+                });
+            }
+            let env = catch_unwind(AssertUnwindSafe(|| factory.make(&spec)))
+                .map_err(|payload| BatchBuildError::Panicked {
+                    index,
+                    message: panic_message(payload.as_ref()),
+                })?
+                .map_err(|source| BatchBuildError::Env { index, source })?;
+            slots.push(Slot {
+                env,
                 episode_steps: 0,
                 needs_reset: true,
-            })
-            .collect();
+            });
+        }
         Ok(Self {
             clipped: vec![0.0; num_envs * spec.action.size],
             spec,

@@ -3,5 +3,5 @@
 mod batch;
 mod workers;
 
-pub use batch::{EnvBatch, ExchangeError};
+pub use batch::{BatchBuildError, EnvBatch, ExchangeError};
 pub use workers::{PoolStartError, WorkerPool};

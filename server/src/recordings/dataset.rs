@@ -42,9 +42,9 @@ pub struct Segment {
     pub number: usize,
     /// Segments found in the file, kept or not.
     pub of: usize,
-    /// Time of the segment's first sample, on the file's clock [s].
+    /// Time of the segment's first sample, on the file's clock \[s\].
     pub start_s: f64,
-    /// Time of the file's first sample, on the file's clock [s] (where the file's
+    /// Time of the file's first sample, on the file's clock \[s\] (where the file's
     /// `session_time_s` applies).
     pub file_start_s: f64,
 }
@@ -57,9 +57,9 @@ pub struct DatasetMeta {
     /// Free text.
     #[serde(default)]
     pub description: String,
-    /// World z of the torso's top surface at rest, as best known [m].
+    /// World z of the torso's top surface at rest, as best known \[m\].
     pub nominal_surface_z: f64,
-    /// World xy of the torso's centre [m].
+    /// World xy of the torso's centre \[m\].
     pub torso_center_xy: [f64; 2],
     /// The recordings.
     pub recordings: Vec<RecordingEntry>,

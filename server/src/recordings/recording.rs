@@ -5,7 +5,7 @@ use std::path::Path;
 
 use super::error::RecordingsError;
 
-/// Lowest and highest sample rates accepted [Hz], judged on the median sample interval
+/// Lowest and highest sample rates accepted \[Hz\], judged on the median sample interval
 /// (1 % slack either side for rounded time stamps). 50 Hz is the slowest joint-state /
 /// wrench topic of the robots in use (UR5e, Franka under ROS 2); below it a 1–3 Hz press
 /// or chirp is sampled too coarsely to fit damping and delays.
@@ -24,7 +24,7 @@ pub const MIN_SAMPLES: usize = 10;
 /// central-difference velocities and the calibration's replay stop being trustworthy.
 pub const GAP_FACTOR: f64 = 5.0;
 
-/// Shortest interval that can be a gap [s] (see [`GAP_FACTOR`]). At fast rates five
+/// Shortest interval that can be a gap \[s\] (see [`GAP_FACTOR`]). At fast rates five
 /// medians is only a few milliseconds, which an executor or DDS hiccup exceeds routinely;
 /// probe motion (≤ a few Hz) is still resolved across 50 ms, so shorter holes are bridged
 /// rather than cutting a 2 kHz log into fragments.
@@ -33,12 +33,12 @@ pub const GAP_MIN_S: f64 = 0.05;
 /// A recording in SI units, world frame.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Recording {
-    /// Time [s], strictly increasing (jitter allowed, no gap: see [`GAP_FACTOR`]), as
+    /// Time \[s\], strictly increasing (jitter allowed, no gap: see [`GAP_FACTOR`]), as
     /// stamped in the source file (a segment's time is not shifted to start at 0).
     pub t: Vec<f64>,
-    /// Probe tip position [m].
+    /// Probe tip position \[m\].
     pub p: Vec<[f64; 3]>,
-    /// Force the body exerts on the probe [N].
+    /// Force the body exerts on the probe \[N\].
     pub f: Vec<[f64; 3]>,
     /// Probe velocity [m/s] (derived by central differences when the file has none).
     pub v: Vec<[f64; 3]>,
@@ -59,7 +59,7 @@ impl Recording {
         self.t.is_empty()
     }
 
-    /// Mean sample rate [Hz]: `(len − 1) / duration`.
+    /// Mean sample rate \[Hz\]: `(len − 1) / duration`.
     pub fn rate_hz(&self) -> f64 {
         if self.t.len() < 2 {
             return 0.0;
@@ -247,11 +247,11 @@ pub(crate) struct Pieces {
     pub found: usize,
     /// `(number, segment)` of those with at least [`MIN_SAMPLES`] samples.
     pub kept: Vec<(usize, Recording)>,
-    /// Time of the file's first sample [s] (of the first segment, kept or not).
+    /// Time of the file's first sample \[s\] (of the first segment, kept or not).
     pub first_t: f64,
 }
 
-/// Check the sample count and the rate of the median interval; return that interval [s].
+/// Check the sample count and the rate of the median interval; return that interval \[s\].
 fn check_rate(path: &Path, t: &[f64]) -> Result<f64, RecordingsError> {
     if t.len() < MIN_SAMPLES {
         return Err(RecordingsError::TooShort {
@@ -276,7 +276,7 @@ fn check_rate(path: &Path, t: &[f64]) -> Result<f64, RecordingsError> {
     Ok(median)
 }
 
-/// The interval above which time has a gap, for a recording with `median` interval [s].
+/// The interval above which time has a gap, for a recording with `median` interval \[s\].
 fn gap_threshold(median: f64) -> f64 {
     (GAP_FACTOR * median).max(GAP_MIN_S)
 }

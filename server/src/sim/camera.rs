@@ -3,12 +3,13 @@
 //! scenes, so a 64×64 depth image costs ≈ 0.15 ms).
 //!
 //! Pinhole model like MuJoCo's: vertical field of view `fovy`, square pixels, image row 0
-//! at the top. Depth is the distance along the optical axis [m] (MuJoCo's convention),
+//! at the top. Depth is the distance along the optical axis \[m\] (MuJoCo's convention),
 //! `far` where nothing is hit. RGB shades each collider's flat colour with a headlight
 //! Lambert term (`0.35 + 0.65·|n·d|`), enough to read shape and contact.
 
 use rapier3d::prelude::*;
 
+use super::vec3::{cross, normalize};
 use super::world::{World, vec3};
 
 /// A pinhole camera.
@@ -20,31 +21,14 @@ pub struct Camera {
     pub forward: [f64; 3],
     /// Unit image-up direction (world), orthogonal to `forward`.
     pub up: [f64; 3],
-    /// Vertical field of view [deg].
+    /// Vertical field of view \[deg\].
     pub fovy_deg: f64,
-    /// Image width [px].
+    /// Image width \[px\].
     pub width: usize,
-    /// Image height [px].
+    /// Image height \[px\].
     pub height: usize,
-    /// Depth reported where no collider is hit, and the ray length [m].
+    /// Depth reported where no collider is hit, and the ray length \[m\].
     pub far: f64,
-}
-
-fn normalize(v: [f64; 3]) -> [f64; 3] {
-    let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    if n > 0.0 {
-        [v[0] / n, v[1] / n, v[2] / n]
-    } else {
-        v
-    }
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
 }
 
 impl Camera {

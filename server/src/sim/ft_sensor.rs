@@ -28,16 +28,16 @@ pub struct FtSensorParams {
     /// Linear change of the bias per second of sensor time, `[fx, fy, fz, tx, ty, tz]`
     /// [N/s, N·m/s] (thermal drift). Default zeros.
     pub bias_drift: [f64; 6],
-    /// Standard deviation of force noise [N]. Default 0.
+    /// Standard deviation of force noise \[N\]. Default 0.
     pub force_noise: f64,
     /// Standard deviation of torque noise [N·m]. Default 0.
     pub torque_noise: f64,
-    /// Low-pass cut-off [Hz]; 0 disables the filter. Default 0.
+    /// Low-pass cut-off \[Hz\]; 0 disables the filter. Default 0.
     pub low_pass_hz: f64,
     /// Subtract the tool's weight (a tared sensor). Default false: the weight is read,
     /// like an untared sensor.
     pub compensate_tool_weight: bool,
-    /// Transport delay of the reading [s] (rounded to whole timesteps). Default 0.
+    /// Transport delay of the reading \[s\] (rounded to whole timesteps). Default 0.
     pub delay_s: f64,
 }
 
@@ -62,7 +62,7 @@ pub struct FtSensor {
     rng: Pcg64Mcg,
     filtered: Option<[f64; 6]>,
     history: std::collections::VecDeque<[f64; 6]>,
-    /// Time since the sensor was created [s] (drift keeps running across resets, as a
+    /// Time since the sensor was created \[s\] (drift keeps running across resets, as a
     /// real sensor's does).
     elapsed: f64,
 }

@@ -7,7 +7,7 @@ use rapier3d::prelude::*;
 use super::scene::Scene;
 use super::world::arr3;
 
-/// Damping of the least-squares step [m] (keeps steps bounded near singularities).
+/// Damping of the least-squares step \[m\] (keeps steps bounded near singularities).
 const DAMPING: f64 = 0.05;
 /// Iteration cap.
 const MAX_ITERATIONS: usize = 200;
@@ -18,9 +18,9 @@ const MAX_ITERATIONS: usize = 200;
     "inverse kinematics did not reach the pose: {position_error:.4} m, {rotation_error:.4} rad off"
 )]
 pub struct IkError {
-    /// Remaining position error [m].
+    /// Remaining position error \[m\].
     pub position_error: f64,
-    /// Remaining rotation error [rad].
+    /// Remaining rotation error \[rad\].
     pub rotation_error: f64,
 }
 

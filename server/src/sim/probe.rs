@@ -13,9 +13,9 @@ use super::torso::ProbeFace;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ProbeParams {
-    /// Mass [kg]. Default 0.2 (a typical linear-array probe with cable strain relief).
+    /// Mass \[kg\]. Default 0.2 (a typical linear-array probe with cable strain relief).
     pub mass: f64,
-    /// Distance from the flange to the face along the flange z axis [m]. Default 0.1.
+    /// Distance from the flange to the face along the flange z axis \[m\]. Default 0.1.
     pub length: f64,
     /// The face (size and contact sampling).
     pub face: ProbeFace,
@@ -70,7 +70,7 @@ impl ProbeParams {
         Ok(())
     }
 
-    /// Half extents of the probe's box (x, y, z) [m].
+    /// Half extents of the probe's box (x, y, z) \[m\].
     pub fn half_extents(&self) -> [f64; 3] {
         [
             self.face.half_width,

@@ -10,32 +10,10 @@ use serde::{Deserialize, Serialize};
 
 use super::ft_sensor::{FtSensor, FtSensorParams};
 use super::probe::{ProbeParamError, ProbeParams};
-use super::robot::{Arm, ArmError, RobotModel, UrdfError, load_urdf, panda, ur5e};
-use super::torso::{
-    ContactWrench, ProbeKinematics, Torso, TorsoParamError, TorsoParams, add, cross, scale, sub,
-};
+use super::robot::{Arm, ArmError, RobotConfig, RobotConfigError};
+use super::torso::{ContactWrench, ProbeKinematics, Torso, TorsoParamError, TorsoParams};
+use super::vec3::{add, cross, scale, sub};
 use super::world::{World, WorldParams, arr3, groups, vec3};
-
-/// Which arm.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "lowercase")]
-pub enum RobotKind {
-    /// Franka Emika Panda (7 DoF).
-    #[default]
-    Panda,
-    /// Universal Robots UR5e (6 DoF).
-    Ur5e,
-}
-
-impl RobotKind {
-    /// The manufacturer's model.
-    pub fn model(self) -> RobotModel {
-        match self {
-            Self::Panda => panda(),
-            Self::Ur5e => ur5e(),
-        }
-    }
-}
 
 /// Everything a scene is built from. Every field has a default (the seed's arena).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -43,17 +21,14 @@ impl RobotKind {
 pub struct SceneParams {
     /// Timestep, gravity, table.
     pub world: WorldParams,
-    /// The arm. Default Panda.
-    pub robot: RobotKind,
-    /// Load the arm from this URDF instead of `robot` (serial chains; see
-    /// [`super::robot::load_urdf`]).
-    pub robot_urdf: Option<std::path::PathBuf>,
-    /// World position of the robot base [m]. Default (-0.5, 0, 0.8): on the table,
+    /// The arm: a built-in one (default Panda) or a URDF file ([`RobotConfig`]).
+    pub robot: RobotConfig,
+    /// World position of the robot base \[m\]. Default (-0.5, 0, 0.8): on the table,
     /// half a metre from the torso's centre, within both arms' reach.
     pub robot_base: [f64; 3],
-    /// Rotation of the base about world z [rad]. Default 0 (facing +x, the torso).
+    /// Rotation of the base about world z \[rad\]. Default 0 (facing +x, the torso).
     pub robot_base_yaw: f64,
-    /// Initial joint positions [rad]; default the model's home pose.
+    /// Initial joint positions \[rad\]; default the model's home pose.
     pub initial_q: Option<Vec<f64>>,
     /// The probe.
     pub probe: ProbeParams,
@@ -73,8 +48,7 @@ impl Default for SceneParams {
     fn default() -> Self {
         Self {
             world: WorldParams::default(),
-            robot: RobotKind::Panda,
-            robot_urdf: None,
+            robot: RobotConfig::default(),
             robot_base: [-0.5, 0.0, 0.8],
             robot_base_yaw: 0.0,
             initial_q: None,
@@ -99,9 +73,9 @@ pub enum SceneError {
     /// The probe.
     #[error(transparent)]
     Probe(#[from] ProbeParamError),
-    /// The URDF.
+    /// The arm's model (its URDF, tool mount or home pose).
     #[error(transparent)]
-    Urdf(#[from] UrdfError),
+    Robot(#[from] RobotConfigError),
     /// Inconsistent values.
     #[error("invalid scene: {0}")]
     Invalid(String),
@@ -137,10 +111,7 @@ impl Scene {
             )));
         }
         let mut world = World::new(&params.world);
-        let model = match &params.robot_urdf {
-            Some(path) => load_urdf(path)?,
-            None => params.robot.model(),
-        };
+        let model = params.robot.model()?;
         let base = Pose::from_parts(
             vec3(params.robot_base),
             Rotation::from_rotation_z(params.robot_base_yaw as Real),
@@ -232,12 +203,12 @@ impl Scene {
         self.torso.as_mut()
     }
 
-    /// Physics timestep [s].
+    /// Physics timestep \[s\].
     pub fn dt(&self) -> f64 {
         self.world.dt()
     }
 
-    /// Simulated time [s].
+    /// Simulated time \[s\].
     pub fn time(&self) -> f64 {
         self.world.time()
     }
@@ -414,7 +385,7 @@ impl Scene {
         Ok(())
     }
 
-    /// Set the probe's mass [kg] (the arm's last link's mass properties follow).
+    /// Set the probe's mass \[kg\] (the arm's last link's mass properties follow).
     pub fn set_probe_mass(&mut self, mass: f64) {
         self.params.probe.mass = mass;
         let s = &mut self.world.sets;
@@ -491,7 +462,7 @@ impl Scene {
     }
 
     /// Contact force pressing along the probe axis (positive when the probe pushes into
-    /// what it touches) [N], noise-free.
+    /// what it touches) \[N\], noise-free.
     pub fn axial_contact_force(&self) -> f64 {
         let axis = self.tip_pose().rotation * Vector::Z;
         let f = self.contact_force;
@@ -530,9 +501,9 @@ impl Scene {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct BoxObjectParams {
-    /// Half extents [m]. Default 0.025 (a 5 cm cube).
+    /// Half extents \[m\]. Default 0.025 (a 5 cm cube).
     pub half_extents: [f64; 3],
-    /// Mass [kg]. Default 0.2.
+    /// Mass \[kg\]. Default 0.2.
     pub mass: f64,
     /// Friction coefficient (combined with the table's by rapier's average rule).
     /// Default 0.5.

@@ -25,11 +25,11 @@ pub mod groups {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TableParams {
-    /// World z of the table top [m]. Default 0.8 (the seed's arena).
+    /// World z of the table top \[m\]. Default 0.8 (the seed's arena).
     pub top_z: f64,
-    /// Centre of the top in world xy [m]. Default (0, 0).
+    /// Centre of the top in world xy \[m\]. Default (0, 0).
     pub center_xy: [f64; 2],
-    /// Half extents x, y, z [m]. Default 0.6 × 0.6 × 0.025.
+    /// Half extents x, y, z \[m\]. Default 0.6 × 0.6 × 0.025.
     pub half_extents: [f64; 3],
     /// Friction coefficient. Default 0.5.
     pub friction: f64,
@@ -50,7 +50,7 @@ impl Default for TableParams {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct WorldParams {
-    /// Physics timestep [s]. Default 0.002 (the seed's MuJoCo model).
+    /// Physics timestep \[s\]. Default 0.002 (the seed's MuJoCo model).
     pub dt: f64,
     /// Gravity [m/s²]. Default (0, 0, -9.81).
     pub gravity: [f64; 3],
@@ -235,7 +235,7 @@ impl World {
         );
     }
 
-    /// Timestep [s] (as configured; rapier integrates with its f32 rounding).
+    /// Timestep \[s\] (as configured; rapier integrates with its f32 rounding).
     pub fn dt(&self) -> f64 {
         self.dt
     }
@@ -245,7 +245,7 @@ impl World {
         arr3(self.gravity)
     }
 
-    /// Simulated time [s]: steps taken × dt.
+    /// Simulated time \[s\]: steps taken × dt.
     pub fn time(&self) -> f64 {
         self.steps as f64 * self.dt
     }
@@ -256,7 +256,7 @@ impl World {
     }
 
     /// First collider hit by the ray from `origin` along `direction` (unit) within
-    /// `max_distance`, with the hit distance [m]. Sees every collider, including the
+    /// `max_distance`, with the hit distance \[m\]. Sees every collider, including the
     /// torso's skin (as of the last step).
     pub fn cast_ray(
         &self,
@@ -280,7 +280,7 @@ impl World {
             .map(|(h, toi)| (h, toi as f64))
     }
 
-    /// Total normal contact force [N] and its torque about `about` [N·m] that the other
+    /// Total normal contact force \[N\] and its torque about `about` [N·m] that the other
     /// colliders exert on `collider` during the last step, summed from the solver
     /// manifolds' impulses (rapier's contact-force events carry no torque). Friction
     /// impulses are left out: rapier does not expose the tangent basis they refer to.

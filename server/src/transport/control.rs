@@ -1,44 +1,21 @@
-//! Handling of control requests (attach, detach, spec, envs, status, stop).
+//! Control requests answered at once: detach, spec, envs, status, stop (attach: `attach.rs`).
 
 use echogym_protocol::{
-    AttachReply, AttachRequest, ControlError, ControlErrorKind, ControlHeader, ControlReply,
-    ControlRequest, LeaseStatus, PROTOCOL_VERSION, ServerStatus,
+    BuildStatus, ControlErrorKind, ControlReply, ControlRequest, LeaseStatus, PROTOCOL_VERSION,
+    ServerStatus,
 };
 
 use super::dispatcher::Dispatcher;
-use super::lease::Lease;
-use crate::pool::EnvBatch;
-
-fn error(kind: ControlErrorKind, message: impl Into<String>) -> ControlReply {
-    let message = message.into();
-    tracing::debug!(?kind, %message, "control request refused");
-    ControlReply::Error(ControlError { kind, message })
-}
+use super::reply::error;
 
 impl Dispatcher {
-    /// Answer one control request (header already received, payload is JSON).
-    pub(super) fn handle_control(&mut self, header: ControlHeader, payload: &[u8]) -> ControlReply {
-        if header.protocol_version != PROTOCOL_VERSION {
-            return error(
-                ControlErrorKind::VersionMismatch,
-                format!(
-                    "client speaks protocol {}, server speaks {PROTOCOL_VERSION}; install matching echogym versions",
-                    header.protocol_version
-                ),
-            );
-        }
-        let len = (header.payload_len as usize).min(payload.len());
-        let request: ControlRequest = match serde_json::from_slice(&payload[..len]) {
-            Ok(request) => request,
-            Err(e) => {
-                return error(
-                    ControlErrorKind::InvalidRequest,
-                    format!("malformed request: {e}"),
-                );
-            }
-        };
+    /// Answer a control request other than attach.
+    pub(super) fn handle_control(&mut self, request: ControlRequest) -> ControlReply {
         match request {
-            ControlRequest::Attach(attach) => self.attach(attach),
+            ControlRequest::Attach(_) => error(
+                ControlErrorKind::Internal,
+                "attach is answered by the attach stage",
+            ),
             ControlRequest::Detach { lease_id } => self.detach(lease_id),
             ControlRequest::Spec { env_id, config } => match self.registry.get(&env_id) {
                 Err(e) => error(ControlErrorKind::UnknownEnv, e.to_string()),
@@ -59,90 +36,12 @@ impl Dispatcher {
         }
     }
 
-    fn attach(&mut self, request: AttachRequest) -> ControlReply {
-        if self.shutdown.is_requested() {
-            return error(
-                ControlErrorKind::ShuttingDown,
-                "the server is shutting down",
-            );
-        }
-        let Ok(client_node) = request.client_node_id.parse::<u128>() else {
-            return error(
-                ControlErrorKind::InvalidRequest,
-                format!(
-                    "client_node_id {:?} is not a node id",
-                    request.client_node_id
-                ),
-            );
-        };
-        let factory = match self.registry.get(&request.env_id) {
-            Ok(factory) => factory,
-            Err(e) => return error(ControlErrorKind::UnknownEnv, e.to_string()),
-        };
-        let spec = match factory.spec(&request.config) {
-            Ok(spec) => spec,
-            Err(e) => return error(ControlErrorKind::InvalidConfig, e.to_string()),
-        };
-        if self.leases.len() >= self.options.max_leases {
-            return error(
-                ControlErrorKind::CapacityExceeded,
-                format!(
-                    "the server holds its maximum of {} leases",
-                    self.options.max_leases
-                ),
-            );
-        }
-        let envs_in_use: usize = self.leases.iter().map(|l| l.batch.len()).sum();
-        if envs_in_use + request.num_envs > self.options.max_envs {
-            return error(
-                ControlErrorKind::CapacityExceeded,
-                format!(
-                    "{} more envs would exceed the server's max_envs of {} ({envs_in_use} in use)",
-                    request.num_envs, self.options.max_envs
-                ),
-            );
-        }
-        let batch = match EnvBatch::new(factory, spec, request.num_envs, request.autoreset_mode) {
-            Ok(batch) => batch,
-            Err(e) => return error(ControlErrorKind::InvalidRequest, e.to_string()),
-        };
-        let lease_id = (u64::from(self.instance) << 32) | u64::from(self.next_lease);
-        self.next_lease += 1;
-        let lease = match Lease::open(
-            &self.node,
-            &self.names,
-            lease_id,
-            batch,
-            client_node,
-            request.client_label.clone(),
-        ) {
-            Ok(lease) => lease,
-            Err(e) => return error(ControlErrorKind::Internal, e.to_string()),
-        };
-        let reply = AttachReply {
-            lease_id,
-            spec: lease.batch.spec().clone(),
-            layout: lease.batch.layout().clone(),
-            autoreset_mode: request.autoreset_mode,
-            server_spin_us: self.options.spin.as_micros() as u64,
-            server_node_id: self.node.id().value().to_string(),
-        };
-        tracing::info!(
-            lease = lease_id,
-            env = %request.env_id,
-            num_envs = request.num_envs,
-            client = %request.client_label,
-            "lease attached"
-        );
-        self.leases.push(lease);
-        ControlReply::Attached(reply)
-    }
-
     fn detach(&mut self, lease_id: u64) -> ControlReply {
         match self.leases.iter().position(|l| l.id == lease_id) {
             Some(index) => {
                 let lease = self.leases.remove(index);
                 tracing::info!(lease = lease_id, client = %lease.client_label, "lease detached");
+                self.builder.discard(lease.close());
                 ControlReply::Detached { lease_id }
             }
             None => error(
@@ -172,6 +71,18 @@ impl Dispatcher {
                     client_label: l.client_label.clone(),
                     exchanges: l.exchanges,
                     age_s: l.created.elapsed().as_secs_f64(),
+                    env_steps: l.env_steps,
+                    idle_s: l.last_activity.elapsed().as_secs_f64(),
+                })
+                .collect(),
+            building: self
+                .pending
+                .iter()
+                .map(|p| BuildStatus {
+                    env_id: p.env_id.clone(),
+                    num_envs: p.num_envs,
+                    client_label: p.client_label.clone(),
+                    waited_s: p.started.elapsed().as_secs_f64(),
                 })
                 .collect(),
         }

@@ -13,11 +13,11 @@
 //! clients, reacts to shutdown requests and to the death of a parent process.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use echogym_protocol::{
-    ActionHeader, IpcLocation, ObsHeader, Op, PROTOCOL_VERSION, ServiceNames, StepStatus,
+    ActionHeader, ControlReply, ControlRequest, IpcLocation, ObsHeader, Op, PROTOCOL_VERSION,
+    ServiceNames, StepStatus,
 };
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::server::Server;
@@ -26,40 +26,20 @@ use iceoryx2::sample::Sample;
 use iceoryx2::sample_mut::SampleMut;
 use rayon::prelude::*;
 
+use super::builder::Builder;
 use super::error::StartError;
 use super::lease::Lease;
-use super::services::{
-    Access, ControlService, EventService, MAX_CLIENTS, ServiceError, control_service, event_service,
-};
+use super::pending::PendingAttach;
+use super::reply::{error, parse_control, respond};
+use super::shutdown::Shutdown;
 use crate::envs::EnvRegistry;
 use crate::pool::WorkerPool;
+/// How often the dispatcher looks for finished builds while it would otherwise block.
+const BUILD_POLL: Duration = Duration::from_millis(1);
 
-/// A shutdown request shared between signal handlers, the `stop` control message and
-/// whoever embeds the server (tests).
-#[derive(Debug, Clone, Default)]
-pub struct Shutdown(Arc<AtomicBool>);
-
-impl Shutdown {
-    /// A token nobody has triggered yet.
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// Ask the server to stop after the exchange in flight.
-    pub fn request(&self) {
-        self.0.store(true, Ordering::SeqCst);
-    }
-
-    /// Whether a stop was requested.
-    pub fn is_requested(&self) -> bool {
-        self.0.load(Ordering::SeqCst)
-    }
-
-    /// The flag itself (for `signal_hook::flag::register`).
-    pub fn flag(&self) -> Arc<AtomicBool> {
-        self.0.clone()
-    }
-}
+use echogym_protocol::services::{
+    Access, ControlService, EventService, MAX_CLIENTS, ServiceError, control_service, event_service,
+};
 
 /// What the dispatcher needs to know; see `crate::config::ServeConfig` for meanings
 /// and defaults.
@@ -88,7 +68,10 @@ pub struct Dispatcher {
     pub(super) options: DispatcherOptions,
     pub(super) names: ServiceNames,
     pub(super) iox_config: Config,
-    pub(super) registry: EnvRegistry,
+    pub(super) registry: Arc<EnvRegistry>,
+    pub(super) builder: Builder,
+    pub(super) pending: Vec<PendingAttach>,
+    pub(super) next_ticket: u64,
     pub(super) pool: WorkerPool,
     pub(super) leases: Vec<Lease>,
     pub(super) started: Instant,
@@ -129,7 +112,7 @@ impl Dispatcher {
     ) -> Result<Self, StartError> {
         let names = ServiceNames::new(&options.name)?;
         let iox_config = options.location.iceoryx_config()?;
-        crate::quiet_iceoryx_logs();
+        echogym_protocol::quiet_iceoryx_logs();
         let node_name = format!("echogym-serve-{}-{}", options.name, std::process::id());
         let node = NodeBuilder::new()
             .config(&iox_config)
@@ -168,6 +151,8 @@ impl Dispatcher {
             .create()
             .map_err(|e| ServiceError::new(&names.wake(), e))?;
         let pool = WorkerPool::new(options.threads)?;
+        let registry = Arc::new(registry);
+        let builder = Builder::start(registry.clone()).map_err(StartError::Builder)?;
         let instance = (std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.subsec_nanos())
@@ -185,6 +170,9 @@ impl Dispatcher {
             names,
             iox_config,
             registry,
+            builder,
+            pending: Vec::new(),
+            next_ticket: 1,
             pool,
             leases: Vec::new(),
             started: Instant::now(),
@@ -221,7 +209,7 @@ impl Dispatcher {
             }
             let idle = now.duration_since(last_work);
             if idle < spin {
-                crate::spin::pause(idle);
+                echogym_protocol::pacing::pause(idle);
                 continue;
             }
             // Drain, poll once more, then block (see the module docs for why this order).
@@ -230,7 +218,11 @@ impl Dispatcher {
                 last_work = Instant::now();
                 continue;
             }
-            let timeout = next_housekeeping.saturating_duration_since(Instant::now());
+            let mut timeout = next_housekeeping.saturating_duration_since(Instant::now());
+            if !self.pending.is_empty() {
+                // A build finishing does not ring the wake event: look again soon.
+                timeout = timeout.min(BUILD_POLL);
+            }
             let _ = self
                 .wake
                 .timed_wait(|_| {}, timeout.max(Duration::from_millis(1)));
@@ -243,7 +235,11 @@ impl Dispatcher {
     fn serve_once(&mut self) -> bool {
         let control = self.serve_control();
         let leases = self.serve_leases();
-        control || leases
+        let built = !self.pending.is_empty() && {
+            self.cancel_abandoned(None);
+            self.finish_builds()
+        };
+        control || leases || built
     }
 
     fn serve_control(&mut self) -> bool {
@@ -258,22 +254,19 @@ impl Dispatcher {
                 }
             };
             served = true;
-            let reply = self.handle_control(*request.user_header(), request.payload());
-            let text = serde_json::to_vec(&reply).expect("replies serialize");
-            let sent = request
-                .loan_slice_uninit(text.len())
-                .map(|mut response| {
-                    *response.user_header_mut() = echogym_protocol::ControlHeader {
-                        protocol_version: PROTOCOL_VERSION,
-                        payload_len: text.len() as u32,
-                    };
-                    response.write_from_slice(&text)
-                })
-                .map_err(|e| format!("{e:?}"))
-                .and_then(|response| response.send().map_err(|e| format!("{e:?}")));
-            if let Err(e) = sent {
-                tracing::debug!(error = ?e, "sending a control reply failed");
-            }
+            let reply = match parse_control(*request.user_header(), request.payload()) {
+                Err(refusal) => ControlReply::Error(refusal),
+                Ok(ControlRequest::Attach(attach)) => match self.begin_attach(attach) {
+                    Err(refusal) => ControlReply::Error(refusal),
+                    Ok(plan) => {
+                        // Answered when the envs are built (finish_builds).
+                        self.queue_attach(plan, request);
+                        continue;
+                    }
+                },
+                Ok(other) => self.handle_control(other),
+            };
+            respond(&request, &reply);
             self.last_reply = Instant::now();
         }
         served
@@ -348,6 +341,7 @@ impl Dispatcher {
         for (ready, (seq, result)) in ready.iter_mut().zip(results) {
             let lease = &mut self.leases[ready.lease];
             lease.exchanges += 1;
+            lease.last_activity = Instant::now();
             let header = ready.obs.user_header_mut();
             header.seq = seq;
             header.num_envs = lease.batch.len() as u32;
@@ -356,6 +350,7 @@ impl Dispatcher {
             match result {
                 Ok(steps) => {
                     self.env_steps += steps;
+                    lease.env_steps += steps;
                     header.status = StepStatus::Ok as u32;
                 }
                 Err(e) => {
@@ -380,7 +375,7 @@ impl Dispatcher {
 
     /// Drop every lease whose client node is no longer alive.
     fn reclaim_dead_clients(&mut self) {
-        if self.leases.is_empty() {
+        if self.leases.is_empty() && self.pending.is_empty() {
             return;
         }
         let mut alive = Vec::new();
@@ -400,19 +395,20 @@ impl Dispatcher {
             tracing::debug!(error = ?e, "listing nodes failed");
             return;
         }
-        let before = self.leases.len();
-        self.leases.retain(|lease| {
-            let keep = alive.contains(&lease.client_node);
-            if !keep {
-                tracing::info!(
-                    lease = lease.id,
-                    client = %lease.client_label,
-                    "reclaimed the lease of a dead client"
-                );
-            }
-            keep
-        });
-        self.reclaimed += (before - self.leases.len()) as u64;
+        self.cancel_abandoned(Some(&alive));
+        let (kept, dead_leases): (Vec<Lease>, Vec<Lease>) = std::mem::take(&mut self.leases)
+            .into_iter()
+            .partition(|lease| alive.contains(&lease.client_node));
+        self.leases = kept;
+        self.reclaimed += dead_leases.len() as u64;
+        for lease in dead_leases {
+            tracing::info!(
+                lease = lease.id,
+                client = %lease.client_label,
+                "reclaimed the lease of a dead client"
+            );
+            self.builder.discard(lease.close());
+        }
         if dead > 0 {
             let cleaned = self.node.try_cleanup_dead_nodes();
             tracing::trace!(?cleaned, "cleaned resources of dead nodes");
@@ -420,6 +416,18 @@ impl Dispatcher {
     }
 
     fn stop(mut self) {
+        for pending in self.pending.drain(..) {
+            pending
+                .cancel
+                .store(true, std::sync::atomic::Ordering::Relaxed);
+            respond(
+                &pending.request,
+                &error(
+                    echogym_protocol::ControlErrorKind::ShuttingDown,
+                    "the server stopped before the envs were built",
+                ),
+            );
+        }
         for lease in &self.leases {
             lease.publish_status(0, StepStatus::ServerStopped, None, None);
         }
@@ -430,7 +438,11 @@ impl Dispatcher {
             std::thread::sleep(left);
         }
         let leases = self.leases.len();
-        self.leases.clear();
+        for lease in std::mem::take(&mut self.leases) {
+            self.builder.discard(lease.close());
+        }
+        // Dropping the builder waits for the queued drops (an env that panics while
+        // being dropped is caught there, and the server still exits cleanly).
         tracing::info!(name = %self.options.name, leases, "echogym server stopped");
     }
 }

@@ -2,8 +2,8 @@
 
 use echogym_protocol::{InvalidServerName, IpcLocationError};
 
-use super::services::ServiceError;
 use crate::pool::PoolStartError;
+use echogym_protocol::services::ServiceError;
 
 /// A server could not start.
 #[derive(Debug, thiserror::Error)]
@@ -31,4 +31,7 @@ pub enum StartError {
     /// The worker threads could not start.
     #[error(transparent)]
     Pool(#[from] PoolStartError),
+    /// The env builder thread could not start.
+    #[error("cannot start the env builder thread: {0}")]
+    Builder(std::io::Error),
 }

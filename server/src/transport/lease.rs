@@ -9,10 +9,10 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::sample_mut::SampleMut;
 
-use super::services::{
+use crate::pool::EnvBatch;
+use echogym_protocol::services::{
     Access, ActionService, EventService, ObsService, ServiceError, event_service, lease_channel,
 };
-use crate::pool::EnvBatch;
 
 /// Server-side state of one lease.
 pub(crate) struct Lease {
@@ -21,6 +21,8 @@ pub(crate) struct Lease {
     pub client_label: String,
     pub created: Instant,
     pub exchanges: u64,
+    pub env_steps: u64,
+    pub last_activity: Instant,
     pub batch: EnvBatch,
     subscriber: Subscriber<ipc::Service, [u8], ActionHeader>,
     publisher: Publisher<ipc::Service, [u8], ObsHeader>,
@@ -67,6 +69,8 @@ impl Lease {
             client_label,
             created: Instant::now(),
             exchanges: 0,
+            env_steps: 0,
+            last_activity: Instant::now(),
             batch,
             subscriber,
             publisher,
@@ -75,6 +79,13 @@ impl Lease {
             _obs_service: obs_service,
             _ready_service: ready_service,
         })
+    }
+
+    /// Close the lease's ports and services (ports first, by field order) and hand back
+    /// its envs, to be dropped off the dispatcher.
+    pub fn close(self) -> EnvBatch {
+        let Self { batch, .. } = self;
+        batch
     }
 
     /// The next waiting action sample, if any.

@@ -1,7 +1,7 @@
 """The plots of a calibration report (``echogym calibrate DATASET --out OUT`` draws them
 after the Rust calibration succeeds; :func:`plot_report` draws them for any ``OUT``).
 
-Drawn from ``OUT/report.json``, ``OUT/replay/*.csv`` and ``OUT/seed_method.csv`` (read
+Drawn from ``OUT/report.json``, ``OUT/replay/*.csv`` and ``OUT/thesis_method.csv`` (read
 with :mod:`echogym.calibration`):
 
 - ``residual_map.png``: where the baseline misses (share of the residual energy by phase,
@@ -18,7 +18,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from echogym.apps.plotting import pyplot
-from echogym.calibration import load_replay, load_report, load_seed_method
+from echogym.calibration import load_replay, load_report, load_thesis_method
 
 __all__ = ["plot_report"]
 
@@ -76,9 +76,9 @@ def plot_report(out: str | Path) -> list[Path]:
     plt.close(fig)
     written.append(path)
 
-    points = load_seed_method(out)
+    points = load_thesis_method(out)
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    for fit in report["seed_method"]:
+    for fit in report["thesis_method"]:
         xs, ys = points.get(fit["site"], ([], []))
         dots = ax.scatter(xs, ys, s=3, alpha=0.3)
         if xs:
@@ -88,7 +88,7 @@ def plot_report(out: str | Path) -> list[Path]:
                     label=f"{fit['site']}: k={fit['intercept']:.0f}, b={fit['slope']:.1f}, r²={fit['r2']:.2f}")
     ax.set_xlabel("v / r [1/s]")
     ax.set_ylabel("F / r [N/m]")
-    ax.set_title("The seed's method: F/r regressed on v/r per site", fontsize=10)
+    ax.set_title("The thesis's method: F/r regressed on v/r per site", fontsize=10)
     ax.legend(fontsize=7)
     fig.tight_layout()
     path = out / "seed_regression.png"

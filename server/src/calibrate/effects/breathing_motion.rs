@@ -325,11 +325,11 @@ fn breathing_fit(s: &Series, residual: &[f64], chirp: Chirp) -> (f64, f64, f64) 
 /// A breathing oscillation whose rate changes linearly: rate `freq + slope·(t − t_ref)`.
 #[derive(Debug, Clone, Copy)]
 struct Chirp {
-    /// Rate at `t_ref` [Hz].
+    /// Rate at `t_ref` \[Hz\].
     freq: f64,
     /// Rate change [Hz/s].
     slope: f64,
-    /// Reference time [s].
+    /// Reference time \[s\].
     t_ref: f64,
 }
 
@@ -348,7 +348,7 @@ impl Chirp {
         Self { slope, ..self }
     }
 
-    /// Phase at `t` [rad] (0 at `t_ref`).
+    /// Phase at `t` \[rad\] (0 at `t_ref`).
     fn phase(&self, t: f64) -> f64 {
         let tau = t - self.t_ref;
         std::f64::consts::TAU * (self.freq * tau + 0.5 * self.slope * tau * tau)

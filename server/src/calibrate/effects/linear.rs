@@ -213,7 +213,7 @@ pub(super) fn contact_mask(s: &Series) -> Vec<f64> {
     s.contact.iter().map(|&c| f64::from(u8::from(c))).collect()
 }
 
-/// Depth below the fitted surface where touching, else 0 [m].
+/// Depth below the fitted surface where touching, else 0 \[m\].
 pub(super) fn positive_depth(s: &Series) -> Vec<f64> {
     s.depth
         .iter()
@@ -237,7 +237,7 @@ pub fn readjusted(series: &[Series], train: &[bool], base: Base) -> Vec<Vec<f64>
 /// Fit effect `name`'s signature to the residuals (`k_eff`: the baseline's contact
 /// A steady stretch: in contact, `|v_z|` below this [m/s] ...
 const STEADY_SPEED: f64 = 0.001;
-/// ... for at least this long [s].
+/// ... for at least this long \[s\].
 const STEADY_MIN_S: f64 = 1.0;
 
 /// Steady stretches of a series (in contact, depth held ≥ `STEADY_MIN_S`), as index

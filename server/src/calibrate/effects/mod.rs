@@ -111,7 +111,7 @@ impl Parameter {
 pub struct ReportContext<'a> {
     /// Static contact stiffness at each site under the calibrated model [N/m].
     pub site_stiffness: &'a [(String, f64)],
-    /// The session's span on its common clock [s] (first sample to last).
+    /// The session's span on its common clock \[s\] (first sample to last).
     pub session_span_s: f64,
 }
 
@@ -170,9 +170,9 @@ pub struct Base {
     pub k: f64,
     /// Contact damping [N·s/m].
     pub c: f64,
-    /// Torso centre, world xy [m] (for breathing's rise profile).
+    /// Torso centre, world xy \[m\] (for breathing's rise profile).
     pub center_xy: [f64; 2],
-    /// Torso half-extents in x and y [m].
+    /// Torso half-extents in x and y \[m\].
     pub half_size: [f64; 2],
 }
 
@@ -182,7 +182,7 @@ pub struct Base {
 pub struct Readjust {
     /// Relative change of the contact stiffness.
     pub stiffness: f64,
-    /// Change of the surface height [m].
+    /// Change of the surface height \[m\].
     pub offset_m: f64,
     /// Change of the contact damping [N·s/m].
     pub damping: f64,

@@ -7,7 +7,7 @@ use super::{Base, Effect, Parameter, Params, Readjust, ReportContext, Signature,
 use crate::calibrate::features::Series;
 use crate::calibrate::replay::{Model, Setup};
 
-/// Reference depth of the signature [m] (the power spring's).
+/// Reference depth of the signature \[m\] (the power spring's).
 const DEPTH_REFERENCE: f64 = crate::sim::torso::POWER_REFERENCE_DEPTH;
 
 const NAME: &str = "nonlinear_stiffness";

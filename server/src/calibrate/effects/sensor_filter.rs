@@ -15,7 +15,7 @@ use crate::sim::ft_sensor::low_pass_alpha;
 
 const NAME: &str = "sensor_filter";
 
-/// Cut-offs the signature and the refit consider [Hz]: F/T sensors filter at 1 Hz and
+/// Cut-offs the signature and the refit consider \[Hz\]: F/T sensors filter at 1 Hz and
 /// above. A cut-off at the bottom of the grid is not a sensor filter: a low-pass slower
 /// than the motion, with the baseline re-balanced through it, mimics relaxation (on
 /// `synth` relaxation, seed 3, a 0.5 Hz "filter" explained 76 % of the excess; the
@@ -78,7 +78,7 @@ impl Effect for SensorFilter {
     }
 }
 
-/// `x` through the low-pass at `cutoff` [Hz] (irregular sampling: each step its own
+/// `x` through the low-pass at `cutoff` \[Hz\] (irregular sampling: each step its own
 /// weight).
 fn low_pass(s: &Series, x: &[f64], cutoff: f64) -> Vec<f64> {
     let mut y = x[0];

@@ -17,7 +17,7 @@ use super::randomization::Draw;
 use super::recorder::EpisodeRecorder;
 use crate::envs::config::{EnvConfigError, parse_config};
 use crate::envs::env::{Env, EnvOutput, Transition};
-use crate::envs::registry::EnvFactory;
+use crate::envs::{EnvBuildError, EnvFactory};
 use crate::sim::controller::ArmController;
 use crate::sim::scene::Scene;
 use crate::sim::torso::Breathing;
@@ -123,7 +123,6 @@ pub struct ArenaEnv<T: Task> {
     controller: ArmController,
     task: T,
     rng: Pcg64Mcg,
-    physics_steps: usize,
     recorder: Option<EpisodeRecorder>,
     ultrasound: Option<Ultrasound>,
 }
@@ -137,7 +136,6 @@ impl<T: Task> ArenaEnv<T> {
         // broad phase would be rebuilt from scratch at each episode's first step.
         scene.world_mut().update_queries();
         let controller = ArmController::new(config.controller.clone(), &scene);
-        let physics_steps = config.controller.physics_steps_per_action(scene.dt());
         let recorder = config
             .record
             .as_ref()
@@ -164,7 +162,6 @@ impl<T: Task> ArenaEnv<T> {
             controller,
             task,
             rng: Pcg64Mcg::from_rng(&mut rand::rng()),
-            physics_steps,
             recorder,
             ultrasound,
             config,
@@ -250,15 +247,14 @@ impl<T: Task> Env for ArenaEnv<T> {
     fn step(&mut self, action: &[f32], out: &mut EnvOutput<'_>) -> Transition {
         let action: Vec<f64> = action.iter().map(|&a| f64::from(a)).collect();
         let action = self.task.action(&self.scene, &action);
-        self.controller.set_action(&self.scene, &action);
-        for _ in 0..self.physics_steps {
-            let tau = self.controller.torques(&mut self.scene);
-            self.scene.step(&tau);
-            self.task.after_physics_step(&self.scene);
-            if let Some(recorder) = &mut self.recorder {
-                recorder.sample(&self.scene);
-            }
-        }
+        let (task, recorder) = (&mut self.task, &mut self.recorder);
+        self.controller
+            .act_observed(&mut self.scene, &action, |scene| {
+                task.after_physics_step(scene);
+                if let Some(recorder) = recorder {
+                    recorder.sample(scene);
+                }
+            });
         self.image();
         let mut transition = self.task.evaluate(&self.config, &self.scene, out.info());
         if let (Some(us), Some(c)) = (&self.ultrasound, &self.config.ultrasound) {
@@ -313,8 +309,15 @@ impl<T: Task> EnvFactory for ArenaFactory<T> {
         let config: ArenaConfig<T::Config> = parse_config(id, config)?;
         config.validate()?;
         let scene_params = config.scene_params();
-        let model = scene_params.robot.model();
-        let dof = model.dof();
+        let dof = config
+            .robot
+            .model()
+            .map_err(|e| EnvConfigError::Invalid {
+                env_id: id.to_owned(),
+                key: "robot",
+                message: e.to_string(),
+            })?
+            .dof();
         let particles = match &config.torso {
             Some(t) => {
                 crate::sim::torso::ShellLayout::new(t.size, t.center_xy, t.bottom_z, t.spacing)
@@ -356,9 +359,10 @@ impl<T: Task> EnvFactory for ArenaFactory<T> {
         Ok(builder.config(resolved).build())
     }
 
-    fn make(&self, spec: &EnvSpec) -> Box<dyn Env> {
+    fn make(&self, spec: &EnvSpec) -> Result<Box<dyn Env>, EnvBuildError> {
+        let error = |e: &dyn std::fmt::Display| EnvBuildError::new(T::Config::ID, e);
         let config: ArenaConfig<T::Config> =
-            serde_json::from_value(spec.config.clone()).expect("spec holds a validated config");
-        Box::new(ArenaEnv::<T>::new(config).expect("validated config builds"))
+            serde_json::from_value(spec.config.clone()).map_err(|e| error(&e))?;
+        Ok(Box::new(ArenaEnv::<T>::new(config).map_err(|e| error(&e))?))
     }
 }

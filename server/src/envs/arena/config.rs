@@ -11,7 +11,8 @@ use crate::envs::config::{EnvConfigError, check_range};
 use crate::sim::controller::ControllerConfig;
 use crate::sim::ft_sensor::FtSensorParams;
 use crate::sim::probe::ProbeParams;
-use crate::sim::scene::{RobotKind, SceneParams};
+use crate::sim::robot::RobotConfig;
+use crate::sim::scene::SceneParams;
 use crate::sim::torso::{BreathingParams, TorsoParams};
 use crate::sim::ultrasound::UltrasoundConfig;
 
@@ -51,8 +52,9 @@ fn default_record_episodes() -> usize {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default, bound = "T: TaskConfig")]
 pub struct ArenaConfig<T: TaskConfig> {
-    /// Arm: `"panda"` or `"ur5e"`.
-    pub robot: RobotKind,
+    /// Arm: `"panda"`, `"ur5e"`, or a URDF file
+    /// `{urdf, tool_link, tool_offset, tool_rpy, home}` ([`RobotConfig`]).
+    pub robot: RobotConfig,
     /// Action interface (controller kind, control frequency, limits, gains).
     pub controller: ControllerConfig,
     /// Steps per episode before truncation.
@@ -92,7 +94,7 @@ impl<T: TaskConfig> ArenaConfig<T> {
     /// breathing, no cameras); tasks override from here.
     pub fn base(task: T) -> Self {
         Self {
-            robot: RobotKind::Panda,
+            robot: RobotConfig::default(),
             controller: ControllerConfig::default(),
             horizon: 500,
             torso: Some(TorsoParams::default()),
@@ -125,6 +127,9 @@ impl<T: TaskConfig> ArenaConfig<T> {
             message,
         };
         check_range(id, "horizon", self.horizon, 1, 10_000_000)?;
+        self.robot
+            .model()
+            .map_err(|e| wrap("robot", e.to_string()))?;
         let scene = self.scene_params();
         self.controller
             .validate(scene.world.dt)
@@ -174,7 +179,7 @@ impl<T: TaskConfig> ArenaConfig<T> {
     /// The scene before randomization.
     pub fn scene_params(&self) -> SceneParams {
         SceneParams {
-            robot: self.robot,
+            robot: self.robot.clone(),
             probe: self.probe.clone(),
             torso: self.torso.clone(),
             ft_sensor: self.ft_sensor.clone(),

@@ -15,11 +15,11 @@ use crate::sim::world::arr3;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Observation {
-    /// Joint positions [rad], `[dof]`.
+    /// Joint positions \[rad\], `[dof]`.
     JointPos,
     /// Joint velocities [rad/s], `[dof]`.
     JointVel,
-    /// Probe tip position [m] and orientation quaternion `(x, y, z, w)`, `[7]`.
+    /// Probe tip position \[m\] and orientation quaternion `(x, y, z, w)`, `[7]`.
     ProbePose,
     /// Probe tip linear [m/s] and angular [rad/s] velocity, `[6]`.
     ProbeVel,
@@ -28,7 +28,7 @@ pub enum Observation {
     Ft,
     /// 1 when the probe touched anything in the last physics step, else 0, `[1]`.
     Contact,
-    /// Torso particle positions [m] and velocities [m/s], `[particles, 6]`.
+    /// Torso particle positions \[m\] and velocities [m/s], `[particles, 6]`.
     TorsoParticles,
     /// The task's errors (see each env's docs), `[task-specific]`.
     TaskErrors,
@@ -58,10 +58,10 @@ pub struct CameraConfig {
     /// Name; fields are `<name>_rgb` (uint8 `[h, w, 3]`) and `<name>_depth` (float32
     /// `[h, w]`, metres along the optical axis).
     pub name: String,
-    /// Width [px]. Default 64.
+    /// Width \[px\]. Default 64.
     #[serde(default = "default_size")]
     pub width: usize,
-    /// Height [px]. Default 64.
+    /// Height \[px\]. Default 64.
     #[serde(default = "default_size")]
     pub height: usize,
     /// Deliver RGB. Default true.
@@ -70,7 +70,7 @@ pub struct CameraConfig {
     /// Deliver depth. Default true.
     #[serde(default = "yes")]
     pub depth: bool,
-    /// Vertical field of view [deg]. Default 45 (robosuite's).
+    /// Vertical field of view \[deg\]. Default 45 (robosuite's).
     #[serde(default = "default_fovy")]
     pub fovy: f64,
     /// Camera position [m, world] (custom cameras; presets place themselves).
@@ -91,7 +91,7 @@ fn default_fovy() -> f64 {
     45.0
 }
 
-/// Depth reported where a camera ray hits nothing [m].
+/// Depth reported where a camera ray hits nothing \[m\].
 pub const CAMERA_FAR: f64 = 10.0;
 
 /// The preset views.

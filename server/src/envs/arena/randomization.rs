@@ -20,27 +20,27 @@ pub struct Randomization {
     pub torso_stiffness: Option<[f64; 2]>,
     /// Torso damping in the seed's terms [1/s]. Default [17, 41] (the seed's).
     pub torso_damping: Option<[f64; 2]>,
-    /// Largest shift of the torso's centre along x and y [m]. Default [0.02, 0.02].
+    /// Largest shift of the torso's centre along x and y \[m\]. Default [0.02, 0.02].
     pub torso_shift: [f64; 2],
     /// Scale of the torso's width and length (height kept). Default [0.95, 1.05].
     pub torso_scale: [f64; 2],
     /// Probe–skin friction coefficient. Default [0.05, 0.2] (gel-coupled skin).
     pub skin_friction: Option<[f64; 2]>,
-    /// Probe mass [kg]. Default [0.18, 0.22].
+    /// Probe mass \[kg\]. Default [0.18, 0.22].
     pub probe_mass: Option<[f64; 2]>,
-    /// Standard deviation of the initial joint positions around the task's start [rad].
+    /// Standard deviation of the initial joint positions around the task's start \[rad\].
     /// Default 0.01.
     pub joint_noise: f64,
-    /// Standard deviation of the initial probe position around the task's start [m].
+    /// Standard deviation of the initial probe position around the task's start \[m\].
     /// Default 0.005 (the seed used 0.01 with its probe starting on the skin).
     pub probe_position_noise: f64,
-    /// Largest constant force bias of the force-torque sensor per axis [N]. Default 0.2.
+    /// Largest constant force bias of the force-torque sensor per axis \[N\]. Default 0.2.
     pub ft_bias: f64,
-    /// Standard deviation of the sensor's force noise [N]. Default [0, 0.05].
+    /// Standard deviation of the sensor's force noise \[N\]. Default [0, 0.05].
     pub ft_noise: Option<[f64; 2]>,
     /// Breathing rate [breaths/min] (when breathing is on). Default [12, 18].
     pub breathing_rate_bpm: Option<[f64; 2]>,
-    /// Breathing amplitude at the top's centre [m]. Default [0.004, 0.006].
+    /// Breathing amplitude at the top's centre \[m\]. Default [0.004, 0.006].
     pub breathing_amplitude: Option<[f64; 2]>,
 }
 
@@ -143,7 +143,7 @@ pub struct Draw {
     pub torso: Option<TorsoParams>,
     /// Breathing for this episode.
     pub breathing: Option<BreathingParams>,
-    /// Probe mass [kg].
+    /// Probe mass \[kg\].
     pub probe_mass: f64,
     /// Sensor imperfections.
     pub ft_sensor: FtSensorParams,

@@ -21,7 +21,7 @@ fn make(id: &str, config: serde_json::Value) -> (EnvSpec, Box<dyn Env>) {
     let registry = EnvRegistry::default();
     let factory = registry.get(id).unwrap();
     let spec = factory.spec(&map(config)).unwrap();
-    let env = factory.make(&spec);
+    let env = factory.make(&spec).unwrap();
     (spec, env)
 }
 
@@ -118,12 +118,71 @@ fn bad_configs_name_the_key() {
             serde_json::json!({"observations": ["joint_pos", "x_ray"]}),
             "x_ray",
         ),
+        (serde_json::json!({"robot": "ur10"}), "ur10"),
+        (
+            serde_json::json!({"robot": {"urdf": "/nonexistent/arm.urdf"}}),
+            "`robot`: cannot read URDF /nonexistent/arm.urdf",
+        ),
+        (
+            serde_json::json!({"robot": {"urdf": "/a.urdf", "tool_ofset": [0, 0, 0]}}),
+            "tool_ofset",
+        ),
     ];
     let factory = registry.get("echogym/UltrasoundScan-v0").unwrap();
     for (config, key) in cases {
         let err = factory.spec(&map(config.clone())).unwrap_err().to_string();
         assert!(err.contains(key), "{config}: {err}");
     }
+}
+
+/// A user's URDF reaches the env from the config: the built-in UR5e's URDF given as a
+/// file with its home pose rolls out bit for bit like `robot = "ur5e"`; a tool mount moves
+/// the probe; a bad file or home is refused at creation, naming `robot`.
+#[test]
+fn urdf_arms_from_the_config_drive_the_envs() {
+    use crate::sim::robot::RobotKind;
+    let dir = std::env::temp_dir().join(format!("echogym-arena-urdf-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("ur5e.urdf");
+    std::fs::write(&path, RobotKind::Ur5e.urdf()).unwrap();
+    std::fs::write(dir.join("broken.urdf"), "not xml").unwrap();
+    let id = "echogym/UltrasoundScan-v0";
+    let home = RobotKind::Ur5e.home();
+
+    let builtin = rollout(id, serde_json::json!({"robot": "ur5e"}), 3, 10);
+    let file = serde_json::json!({"robot": {"urdf": path, "home": home}});
+    assert!(
+        rollout(id, file, 3, 10) == builtin,
+        "URDF file and built-in differ"
+    );
+    let mounted =
+        serde_json::json!({"robot": {"urdf": path, "home": home, "tool_offset": [0.0, 0.0, 0.03]}});
+    let (spec, _) = make(id, mounted.clone());
+    assert_eq!(spec.action.size, 6);
+    assert!(
+        rollout(id, mounted, 3, 10) != builtin,
+        "the tool mount changed nothing"
+    );
+
+    let registry = EnvRegistry::default();
+    let factory = registry.get(id).unwrap();
+    let refused = |robot: serde_json::Value| {
+        factory
+            .spec(&map(serde_json::json!({"robot": robot})))
+            .unwrap_err()
+            .to_string()
+    };
+    let broken = refused(serde_json::json!({"urdf": dir.join("broken.urdf")}));
+    assert!(
+        broken.contains("`robot`") && broken.contains("broken.urdf"),
+        "{broken}"
+    );
+    let short = refused(serde_json::json!({"urdf": path, "home": [0.0, 0.0]}));
+    assert!(
+        short.contains("home has 2 values for the 6 joints"),
+        "{short}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]

@@ -7,10 +7,10 @@
 //! `F_cmd = F* + Kf·(F* - F) + Ki·∫(F* - F)dt`, where `F` is the contact force along the
 //! axis measured by the force-torque sensor (tool weight removed).
 
-use rapier3d::na::{DMatrix, DVector, Matrix3, Vector3};
+use rapier3d::na::{DVector, Matrix3, Vector3};
 use rapier3d::prelude::*;
 
-use super::osc::{Osc, OscParams};
+use super::osc::{Osc, OscParams, TaskTerms};
 use crate::sim::scene::Scene;
 use crate::sim::world::arr3;
 
@@ -42,7 +42,7 @@ pub struct HybridForceMotion {
     pub motion: Osc,
     /// Force loop gains.
     pub gains: ForceGains,
-    /// Desired contact force along the probe axis [N]. Default 5 (the seed's target).
+    /// Desired contact force along the probe axis \[N\]. Default 5 (the seed's target).
     pub force: f64,
     integral: f64,
 }
@@ -58,7 +58,7 @@ impl HybridForceMotion {
         }
     }
 
-    /// Contact force along the probe axis from the sensor, tool weight removed [N]
+    /// Contact force along the probe axis from the sensor, tool weight removed \[N\]
     /// (positive when pressing).
     pub fn measured_force(scene: &Scene) -> f64 {
         let reading = scene.ft_reading();
@@ -85,7 +85,7 @@ impl HybridForceMotion {
         let select_motion = Matrix3::identity() - select_force;
 
         // Motion part: the OSC task force with its axial component removed.
-        let (task, lambda, j, g) = self.motion.task_terms(scene);
+        let TaskTerms { task, lambda, j, g } = self.motion.task_terms(scene);
         let mut selected = task.clone();
         let lin = select_motion * Vector3::new(task[0], task[1], task[2]);
         selected[0] = lin.x;
@@ -111,6 +111,3 @@ impl HybridForceMotion {
         tau.iter().copied().collect()
     }
 }
-
-/// OSC pieces: task acceleration, task inertia Λ, Jacobian, gravity torques.
-pub(crate) type TaskTerms = (DVector<f64>, DMatrix<f64>, DMatrix<f64>, DVector<f64>);

@@ -12,7 +12,7 @@ pub struct JointPosition {
     pub kp: f64,
     /// Damping ratio. Default 1.
     pub damping_ratio: f64,
-    /// Goal joint positions [rad].
+    /// Goal joint positions \[rad\].
     pub goal: Vec<f64>,
 }
 

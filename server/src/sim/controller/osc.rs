@@ -12,6 +12,18 @@ use serde::{Deserialize, Serialize};
 use crate::sim::scene::Scene;
 use crate::sim::world::{arr3, vec3};
 
+/// The OSC's pieces that other controllers reuse (the hybrid force/motion law).
+pub(crate) struct TaskTerms {
+    /// Desired task acceleration `Kp·e - Kd·ẋ` (linear, angular).
+    pub task: DVector<f64>,
+    /// Task-space inertia Λ.
+    pub lambda: DMatrix<f64>,
+    /// Tip Jacobian.
+    pub j: DMatrix<f64>,
+    /// Gravity torques [N·m].
+    pub g: DVector<f64>,
+}
+
 /// Gains of the operational-space controller.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -63,7 +75,7 @@ impl Osc {
         }
     }
 
-    /// The goal position [m] and rotation.
+    /// The goal position \[m\] and rotation.
     pub fn goal(&self) -> ([f64; 3], Rotation) {
         (self.goal_position, self.goal_rotation)
     }
@@ -131,9 +143,14 @@ impl Osc {
 
     /// Desired task acceleration `Kp·e - Kd·ẋ`, task inertia Λ, tip Jacobian and gravity
     /// torques (for controllers that reuse the OSC's motion law).
-    pub(crate) fn task_terms(&self, scene: &mut Scene) -> super::hybrid::TaskTerms {
+    pub(crate) fn task_terms(&self, scene: &mut Scene) -> TaskTerms {
         let t = self.terms(scene);
-        (t.task, t.lambda, t.j, t.g)
+        TaskTerms {
+            task: t.task,
+            lambda: t.lambda,
+            j: t.j,
+            g: t.g,
+        }
     }
 
     /// Joint torques for the current state [N·m].

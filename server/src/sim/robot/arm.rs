@@ -228,7 +228,7 @@ impl Arm {
         self.flange
     }
 
-    /// Joint positions [rad].
+    /// Joint positions \[rad\].
     pub fn q(&self, world: &World) -> Vec<f64> {
         let (mb, _) = world.sets.multibody_joints.get(self.handle).expect("arm");
         self.link_ids
@@ -246,7 +246,7 @@ impl Arm {
             .collect()
     }
 
-    /// Teleport to joint positions `q` [rad] and velocities `qd` [rad/s].
+    /// Teleport to joint positions `q` \[rad\] and velocities `qd` [rad/s].
     pub fn set_state(&self, world: &mut World, q: &[f64], qd: &[f64]) {
         let s = &mut world.sets;
         let (mb, _) = s.multibody_joints.get_mut(self.handle).expect("arm");
@@ -399,7 +399,7 @@ impl Arm {
         tau
     }
 
-    /// World centre of mass of link `k` [m].
+    /// World centre of mass of link `k` \[m\].
     pub fn link_com(&self, world: &World, k: usize) -> [f64; 3] {
         arr3(world.sets.bodies[self.links[k]].center_of_mass())
     }

@@ -1,6 +1,6 @@
 //! [`RobotModel`]: a serial arm described like a URDF (joint origins, axes, limits,
-//! link inertials, simple collision capsules), shared by the built-in UR5e and Panda
-//! models and the URDF loader.
+//! link inertials, simple collision capsules), as the URDF loader builds it for the
+//! built-in arms and for users' files.
 //!
 //! Units: metres, radians, kilograms, kg·m², seconds, newtons, newton-metres.
 //! Frames: every joint origin is given in the frame of its parent link (URDF
@@ -8,25 +8,27 @@
 //! its child link about `axis`, expressed in the joint frame; the child link frame is the
 //! joint frame. Inertials are about the link's centre of mass, in the link frame.
 
+use serde::{Deserialize, Serialize};
+
 /// A capsule collision shape between two points of a link frame.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Capsule {
-    /// First segment end, link frame [m].
+    /// First segment end, link frame \[m\].
     pub a: [f64; 3],
-    /// Second segment end, link frame [m].
+    /// Second segment end, link frame \[m\].
     pub b: [f64; 3],
-    /// Radius [m].
+    /// Radius \[m\].
     pub radius: f64,
 }
 
 /// Mass properties and collision shapes of one link.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct LinkSpec {
     /// Link name (URDF `link name`).
     pub name: String,
-    /// Mass [kg].
+    /// Mass \[kg\].
     pub mass: f64,
-    /// Centre of mass in the link frame [m].
+    /// Centre of mass in the link frame \[m\].
     pub com: [f64; 3],
     /// Inertia about the centre of mass, link-frame axes [kg·m²]:
     /// `[ixx, iyy, izz, ixy, ixz, iyz]`.
@@ -36,19 +38,19 @@ pub struct LinkSpec {
 }
 
 /// A revolute joint and the link it moves.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JointSpec {
     /// Joint name.
     pub name: String,
-    /// Joint frame origin in the parent link frame [m].
+    /// Joint frame origin in the parent link frame \[m\].
     pub origin_xyz: [f64; 3],
-    /// Joint frame orientation in the parent link frame, fixed-axis roll-pitch-yaw [rad].
+    /// Joint frame orientation in the parent link frame, fixed-axis roll-pitch-yaw \[rad\].
     pub origin_rpy: [f64; 3],
     /// Rotation axis in the joint frame (unit vector).
     pub axis: [f64; 3],
-    /// Lower position limit [rad].
+    /// Lower position limit \[rad\].
     pub lower: f64,
-    /// Upper position limit [rad].
+    /// Upper position limit \[rad\].
     pub upper: f64,
     /// Velocity limit [rad/s].
     pub max_velocity: f64,
@@ -63,7 +65,7 @@ pub struct JointSpec {
 }
 
 /// A fixed-base serial arm.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RobotModel {
     /// Model name, e.g. `"ur5e"`.
     pub name: String,
@@ -71,11 +73,11 @@ pub struct RobotModel {
     pub base: LinkSpec,
     /// Joints from base to flange.
     pub joints: Vec<JointSpec>,
-    /// Tool flange frame in the last link frame: translation [m].
+    /// Tool flange frame in the last link frame: translation \[m\].
     pub flange_xyz: [f64; 3],
-    /// Tool flange frame in the last link frame: roll-pitch-yaw [rad].
+    /// Tool flange frame in the last link frame: roll-pitch-yaw \[rad\].
     pub flange_rpy: [f64; 3],
-    /// A comfortable starting configuration [rad], one per joint.
+    /// A comfortable starting configuration \[rad\], one per joint.
     pub home: Vec<f64>,
 }
 

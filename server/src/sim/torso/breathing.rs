@@ -27,7 +27,7 @@ use super::law::{LawContext, LawTerms, ParticleLaw};
 use super::tissue_laws::power_law;
 use super::torso::Torso;
 
-/// Time constant of the breathing-rate drift [s].
+/// Time constant of the breathing-rate drift \[s\].
 const DRIFT_TIME_CONSTANT: f64 = 30.0;
 
 /// Breathing motion of the torso's top.
@@ -36,11 +36,11 @@ const DRIFT_TIME_CONSTANT: f64 = 30.0;
 pub struct BreathingParams {
     /// Breaths per minute. Default 15 (adult at rest: 12–20).
     pub rate_bpm: f64,
-    /// Rise of the top's centre at full inhalation [m]. Default 0.005.
+    /// Rise of the top's centre at full inhalation \[m\]. Default 0.005.
     pub amplitude: f64,
     /// Stationary relative standard deviation of the slowly drifting rate. Default 0.05.
     pub rate_drift: f64,
-    /// Phase at t = 0 [rad] (0: fully exhaled). Default 0.
+    /// Phase at t = 0 \[rad\] (0: fully exhaled). Default 0.
     pub phase: f64,
     /// Rise at the top's edges as a share of the centre's, in [0, 1]: 0 a dome (the
     /// belly rises, the flanks stay), 1 the whole top rising together. Default 0.
@@ -199,19 +199,19 @@ impl Breathing {
         &self.params
     }
 
-    /// Rise of the top's centre the drive holds now [m].
+    /// Rise of the top's centre the drive holds now \[m\].
     pub fn offset(&self) -> f64 {
         self.params.amplitude * (1.0 - self.phase.cos()) / 2.0
     }
 
-    /// Particle displacements [m] at equilibrium under the current drive (to start an
+    /// Particle displacements \[m\] at equilibrium under the current drive (to start an
     /// episode mid-breath without a transient).
     pub fn equilibrium(&self) -> Vec<f64> {
         let a = self.offset();
         self.response.iter().map(|r| a * r).collect()
     }
 
-    /// Current breathing rate [Hz] (with drift).
+    /// Current breathing rate \[Hz\] (with drift).
     pub fn rate_hz(&self) -> f64 {
         let nominal = self.params.rate_bpm / 60.0;
         (nominal * (1.0 + self.drift) + self.rate_slope * self.elapsed).max(0.1 * nominal)
@@ -300,7 +300,7 @@ mod tests {
         assert!(lowest.abs() < 0.0005, "lowest {lowest}");
     }
 
-    /// Rise [m] of the top at the centre and halfway to a corner, at full inhalation.
+    /// Rise \[m\] of the top at the centre and halfway to a corner, at full inhalation.
     fn rises(edge_rise: f64) -> (f64, f64) {
         let mut torso = Torso::new(TorsoParams::default(), ProbeFace::default()).unwrap();
         let params = BreathingParams {
@@ -333,7 +333,7 @@ mod tests {
         assert!(off > 0.9 * centre, "flat: {off} vs {centre}");
     }
 
-    /// Peak-to-peak force [N] on a probe held `depth` below the rest top at the centre,
+    /// Peak-to-peak force \[N\] on a probe held `depth` below the rest top at the centre,
     /// over two breaths.
     fn force_swing(params: TorsoParams, depth: f64) -> f64 {
         let mut torso = Torso::new(params, ProbeFace::default()).unwrap();

@@ -10,13 +10,15 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::sim::vec3::{add, cross, scale, sub};
+
 /// The probe face and how densely it is sampled.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ProbeFace {
-    /// Half width across the array [m]. Default 0.005 (10 mm face).
+    /// Half width across the array \[m\]. Default 0.005 (10 mm face).
     pub half_width: f64,
-    /// Half length along the array [m]. Default 0.03 (60 mm face).
+    /// Half length along the array \[m\]. Default 0.03 (60 mm face).
     pub half_length: f64,
     /// Samples across and along the face. Default 3 × 13 (5 mm pitch): well below the
     /// particle spacing, so the contact force is smooth as the probe slides.
@@ -61,12 +63,12 @@ impl ProbeFace {
 /// The probe's rigid-body state at the start of a step (world frame).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProbeKinematics {
-    /// Centre of the face (the tip) [m].
+    /// Centre of the face (the tip) \[m\].
     pub tip: [f64; 3],
     /// Probe axes in world coordinates: `axes[0]` across, `axes[1]` along the array,
     /// `axes[2]` out of the face.
     pub axes: [[f64; 3]; 3],
-    /// Centre of mass of the body the wrench is applied to [m].
+    /// Centre of mass of the body the wrench is applied to \[m\].
     pub com: [f64; 3],
     /// Linear velocity of the centre of mass [m/s].
     pub linear_velocity: [f64; 3],
@@ -77,11 +79,11 @@ pub struct ProbeKinematics {
 /// The contact wrench the skin exerts on the probe, about its centre of mass.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ContactWrench {
-    /// Force [N] (world).
+    /// Force \[N\] (world).
     pub force: [f64; 3],
     /// Torque about the probe's centre of mass [N·m] (world).
     pub torque: [f64; 3],
-    /// Sum of normal forces [N].
+    /// Sum of normal forces \[N\].
     pub normal_force: f64,
     /// Samples in contact.
     pub samples_in_contact: usize,
@@ -92,26 +94,6 @@ impl ContactWrench {
     pub fn in_contact(&self) -> bool {
         self.samples_in_contact > 0
     }
-}
-
-pub(crate) fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-
-pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-pub(crate) fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
-
-pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
 }
 
 impl ProbeKinematics {

@@ -7,30 +7,30 @@
 
 /// The state a law sees.
 pub struct LawContext<'a> {
-    /// Simulated time at the start of the step [s].
+    /// Simulated time at the start of the step \[s\].
     pub t: f64,
-    /// Step length [s].
+    /// Step length \[s\].
     pub dt: f64,
-    /// Particle displacements along their normals [m].
+    /// Particle displacements along their normals \[m\].
     pub u: &'a [f64],
     /// Particle velocities along their normals [m/s].
     pub v: &'a [f64],
-    /// Particle masses [kg] (tissue column beneath each particle).
+    /// Particle masses \[kg\] (tissue column beneath each particle).
     pub mass: &'a [f64],
-    /// Rest positions (world) [m].
+    /// Rest positions (world) \[m\].
     pub rest: &'a [[f64; 3]],
 }
 
 /// Per-particle terms, accumulated over laws.
 #[derive(Debug, Clone, Default)]
 pub struct LawTerms {
-    /// Force along the normal [N].
+    /// Force along the normal \[N\].
     pub force: Vec<f64>,
     /// `-∂f/∂u` [N/m].
     pub stiffness: Vec<f64>,
     /// `-∂f/∂v` [N·s/m].
     pub damping: Vec<f64>,
-    /// Volume the laws add to the torso's rest volume [m³] (e.g. inhaled air): the
+    /// Volume the laws add to the torso's rest volume \[m³\] (e.g. inhaled air): the
     /// volume-preservation pressure acts on the change beyond it.
     pub volume_offset: f64,
 }

@@ -14,15 +14,15 @@ pub struct ShellLayout {
     pub nx: usize,
     /// Top grid size in y.
     pub ny: usize,
-    /// Top grid spacing in x and y [m].
+    /// Top grid spacing in x and y \[m\].
     pub h: [f64; 2],
     /// Number of side rings.
     pub rings: usize,
-    /// Rest positions (world) [m].
+    /// Rest positions (world) \[m\].
     pub rest: Vec<[f64; 3]>,
     /// Unit slide directions (outward rest normals).
     pub normal: Vec<[f64; 3]>,
-    /// Surface area each particle stands for [m²].
+    /// Surface area each particle stands for \[m²\].
     pub area: Vec<f64>,
     /// Undirected neighbour pairs `(i, j, weight)`; weight scales the edge spring to
     /// keep the membrane tension uniform where spacings differ.
@@ -33,7 +33,7 @@ pub struct ShellLayout {
     /// The top grid's boundary `(i, j)`, counter-clockwise; ring particle `k` of ring `r`
     /// is `top_len + r·boundary.len() + k` and stands below boundary point `k`.
     pub boundary: Vec<(usize, usize)>,
-    /// World z of the fixed bottom edge [m].
+    /// World z of the fixed bottom edge \[m\].
     pub bottom_z: f64,
 }
 

@@ -25,7 +25,6 @@ mod torso;
 
 pub use breathing::{Breathing, BreathingParamError, BreathingParams, rise_profile};
 pub use contact::{ContactWrench, ProbeFace, ProbeKinematics};
-pub(crate) use contact::{add, cross, scale, sub};
 pub use law::{LawContext, LawTerms, LinearSpringDamper, ParticleLaw};
 pub use layout::ShellLayout;
 pub use params::{SiteStiffness, TorsoParamError, TorsoParams};

@@ -31,15 +31,15 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TorsoParams {
-    /// World xy of the torso's centre [m]. Default (0.0, 0.0): the arena's torso spot.
+    /// World xy of the torso's centre \[m\]. Default (0.0, 0.0): the arena's torso spot.
     pub center_xy: [f64; 2],
-    /// World z of the torso's bottom (resting on the table) [m]. Default 0.8, the seed's
+    /// World z of the torso's bottom (resting on the table) \[m\]. Default 0.8, the seed's
     /// table height.
     pub bottom_z: f64,
-    /// Box size x (width), y (length), z (height) [m]. Default 0.28 × 0.35 × 0.105, the
+    /// Box size x (width), y (length), z (height) \[m\]. Default 0.28 × 0.35 × 0.105, the
     /// seed's torso.
     pub size: [f64; 3],
-    /// Target particle spacing on the shell [m]. Default 0.0175 (half the seed's 3.5 cm:
+    /// Target particle spacing on the shell \[m\]. Default 0.0175 (half the seed's 3.5 cm:
     /// with the smooth skin, a 10 mm probe does not feel the grid; see `docs/physics.md`).
     pub spacing: f64,
     /// Seed-term stiffness k [1/s²] (MuJoCo reference acceleration). Default 1324.17.
@@ -49,13 +49,13 @@ pub struct TorsoParams {
     /// Tissue density [kg/m³] giving each particle the mass of its column. Default 1000
     /// (soft tissue ≈ 1000–1060).
     pub density: f64,
-    /// Smoothing length ℓ [m]: neighbour springs are `κ·ℓ²` per grid edge, so a load
+    /// Smoothing length ℓ \[m\]: neighbour springs are `κ·ℓ²` per grid edge, so a load
     /// spreads ≈ ℓ around the probe. Default 0.035 (the seed's particle spacing).
     pub smoothing_length: f64,
     /// Neighbour damping relative to the neighbour spring, as a multiple of
     /// `damping / stiffness`. Default 1 (same ratio as the particles' own).
     pub coupling_damping: f64,
-    /// Volume-preservation bulk modulus [Pa]. Default 100,000: a 1 cm press loses ≈ 6 %
+    /// Volume-preservation bulk modulus \[Pa\]. Default 100,000: a 1 cm press loses ≈ 6 %
     /// of the displaced volume (the rest bulges out). 0 disables it.
     pub bulk_modulus: f64,
     /// Probe–skin contact stiffness per unit contact area [N/m³]. Default 2e8: contact
@@ -80,7 +80,7 @@ pub struct TorsoParams {
     /// Damping that grows with indentation (Hunt–Crossley-like,
     /// [`super::DepthDamping`]). Default none.
     pub depth_damping: Option<super::DepthDamping>,
-    /// Tissue mass moving with the probe while in contact [kg]: the skin pushes back
+    /// Tissue mass moving with the probe while in contact \[kg\]: the skin pushes back
     /// `−m·a` along the probe's motion. Default 0 (the particles' own mass only).
     pub moving_mass: f64,
     /// Local stiffness scales around points of the top (e.g. a stiffer site found by
@@ -97,7 +97,7 @@ pub struct SiteStiffness {
     /// Site name (for reports).
     #[serde(default)]
     pub name: String,
-    /// World xy of the site [m].
+    /// World xy of the site \[m\].
     pub xy: [f64; 2],
     /// Stiffness scale at the site (1: unchanged).
     pub scale: f64,
@@ -277,7 +277,7 @@ impl TorsoParams {
         Ok(())
     }
 
-    /// World z of the top surface at rest [m].
+    /// World z of the top surface at rest \[m\].
     pub fn top_z(&self) -> f64 {
         self.bottom_z + self.size[2]
     }

@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 
 use super::law::{LawContext, LawTerms, ParticleLaw};
 
-/// Reference depth of the power spring [m].
+/// Reference depth of the power spring \[m\].
 pub const POWER_REFERENCE_DEPTH: f64 = 0.01;
 
 /// Parameters of the Maxwell branch (`Default`: no branch, ratio 0).
@@ -25,7 +25,7 @@ pub const POWER_REFERENCE_DEPTH: f64 = 0.01;
 pub struct Relaxation {
     /// Branch stiffness relative to the particle spring (`k_m / k`).
     pub ratio: f64,
-    /// Relaxation time constant [s].
+    /// Relaxation time constant \[s\].
     pub tau_s: f64,
 }
 
@@ -79,9 +79,9 @@ impl ParticleLaw for PowerSpring {
 pub struct MaxwellBranch {
     /// Branch stiffness per particle [N/m].
     pub stiffness: Vec<f64>,
-    /// Time constant [s].
+    /// Time constant \[s\].
     pub tau: f64,
-    /// Dashpot positions [m].
+    /// Dashpot positions \[m\].
     pub x: Vec<f64>,
 }
 

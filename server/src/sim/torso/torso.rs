@@ -1,12 +1,13 @@
 //! [`Torso`]: the soft torso's state and its step (see the `torso` module docs).
 
-use super::contact::{ContactWrench, ProbeFace, ProbeKinematics, add, cross, scale, sub};
+use super::contact::{ContactWrench, ProbeFace, ProbeKinematics};
 use super::law::{LawContext, LawTerms, LinearSpringDamper, ParticleLaw};
 use super::layout::ShellLayout;
 use super::params::{TorsoParamError, TorsoParams};
 use super::skin::Skin;
 use super::solver::{ContactRow, System, Workspace, conjugate_gradient};
 use super::tissue_laws::{DepthDampingLaw, MaxwellBranch, PowerSpring};
+use crate::sim::vec3::{add, cross, scale, sub};
 
 /// Relative residual at which the implicit solve stops.
 const CG_TOLERANCE: f64 = 1e-6;
@@ -141,7 +142,7 @@ impl Torso {
         &self.layout
     }
 
-    /// Particle masses [kg].
+    /// Particle masses \[kg\].
     pub fn masses(&self) -> &[f64] {
         &self.mass
     }
@@ -151,7 +152,7 @@ impl Torso {
         self.laws.push(law);
     }
 
-    /// Displacements along the rest normals [m].
+    /// Displacements along the rest normals \[m\].
     pub fn displacements(&self) -> &[f64] {
         &self.u
     }
@@ -161,14 +162,14 @@ impl Torso {
         &self.v
     }
 
-    /// Set displacements [m] and velocities [m/s] along the rest normals (e.g. to start
+    /// Set displacements \[m\] and velocities [m/s] along the rest normals (e.g. to start
     /// at a driven equilibrium).
     pub fn set_state(&mut self, u: &[f64], v: &[f64]) {
         self.u.copy_from_slice(u);
         self.v.copy_from_slice(v);
     }
 
-    /// Simulated time [s].
+    /// Simulated time \[s\].
     pub fn time(&self) -> f64 {
         self.t
     }
@@ -178,7 +179,7 @@ impl Torso {
         self.last_iterations
     }
 
-    /// World position of particle `i` [m].
+    /// World position of particle `i` \[m\].
     pub fn position(&self, i: usize) -> [f64; 3] {
         add(self.layout.rest[i], scale(self.layout.normal[i], self.u[i]))
     }
@@ -188,7 +189,7 @@ impl Torso {
         scale(self.layout.normal[i], self.v[i])
     }
 
-    /// World z of the skin over `(x, y)`, or `None` off the top face [m].
+    /// World z of the skin over `(x, y)`, or `None` off the top face \[m\].
     pub fn skin_z(&self, x: f64, y: f64) -> Option<f64> {
         self.skin
             .covers(x, y)
@@ -264,7 +265,7 @@ impl Torso {
         out
     }
 
-    /// Change of enclosed volume [m³] (first order in the displacements).
+    /// Change of enclosed volume \[m³\] (first order in the displacements).
     pub fn volume_change(&self) -> f64 {
         self.layout
             .area
@@ -274,7 +275,7 @@ impl Torso {
             .sum()
     }
 
-    /// Mechanical energy of the linear parts [J]: kinetic, particle springs, neighbour
+    /// Mechanical energy of the linear parts \[J\]: kinetic, particle springs, neighbour
     /// and ground springs, volume term (laws' internal states excluded).
     pub fn energy(&self) -> f64 {
         let kinetic: f64 = self
@@ -561,8 +562,8 @@ impl Torso {
             .collect()
     }
 
-    /// Static displacements [m] of the free torso (no probe) under per-particle normal
-    /// forces `force` [N] with `volume_offset` [m³] added to its rest volume: the exact
+    /// Static displacements \[m\] of the free torso (no probe) under per-particle normal
+    /// forces `force` \[N\] with `volume_offset` \[m³\] added to its rest volume: the exact
     /// equilibrium of the discrete model with the laws' stiffness at rest. Used to
     /// calibrate driven laws (breathing) so they reach a stated displacement.
     pub fn static_response(&self, force: &[f64], volume_offset: f64) -> Vec<f64> {

@@ -30,6 +30,7 @@ use super::phantom::{Phantom, Segment, SegmentScratch};
 use super::speckle::Speckle;
 use super::tissue::{Tissue, reflection};
 use crate::sim::torso::Torso;
+use crate::sim::vec3::{cross, normalize};
 
 /// Speed of sound the scanner assumes [m/s].
 pub const SCANNER_SPEED: f64 = 1540.0;
@@ -37,7 +38,7 @@ pub const SCANNER_SPEED: f64 = 1540.0;
 const PULSE_CYCLES: f64 = 2.0;
 /// Receive f-number (lateral resolution λ·F#).
 const F_NUMBER: f64 = 2.0;
-/// Excess two-way loss beyond which a pixel counts as shadowed [dB].
+/// Excess two-way loss beyond which a pixel counts as shadowed \[dB\].
 const SHADOW_DB: f64 = 40.0;
 /// Coupling below which a line carries no useful image.
 const MIN_COUPLING: f64 = 0.5;
@@ -50,20 +51,20 @@ pub struct UltrasoundConfig {
     pub lines: usize,
     /// Depth samples (image rows). Default 128.
     pub rows: usize,
-    /// Array aperture along the probe's y axis [m]; at most the face length. Default 0.04.
+    /// Array aperture along the probe's y axis \[m\]; at most the face length. Default 0.04.
     pub aperture: f64,
-    /// Imaging depth from the face [m]. Default 0.12.
+    /// Imaging depth from the face \[m\]. Default 0.12.
     pub depth: f64,
-    /// Centre frequency [MHz]. Default 5.
+    /// Centre frequency \[MHz\]. Default 5.
     pub frequency_mhz: f64,
-    /// Displayed dynamic range [dB]. Default 60.
+    /// Displayed dynamic range \[dB\]. Default 60.
     pub dynamic_range_db: f64,
-    /// Overall gain [dB]. Default 10.
+    /// Overall gain \[dB\]. Default 10.
     pub gain_db: f64,
     /// Time-gain compensation slope [dB/(cm·MHz)], two-way loss undone. Default 0.5
     /// (average soft tissue).
     pub tgc_db_cm_mhz: f64,
-    /// Gel layer thickness: a gap up to this still couples, fading linearly [m].
+    /// Gel layer thickness: a gap up to this still couples, fading linearly \[m\].
     /// Default 0.0005.
     pub gel: f64,
     /// Seed of the speckle field (the patient's scatterers; fixed across episodes).
@@ -107,7 +108,7 @@ pub struct UltrasoundConfigError {
 }
 
 impl UltrasoundConfig {
-    /// Check ranges; `face_length` is the probe face's length along the array [m].
+    /// Check ranges; `face_length` is the probe face's length along the array \[m\].
     pub fn validate(&self, face_length: f64) -> Result<(), UltrasoundConfigError> {
         let err = |key, message: String| Err(UltrasoundConfigError { key, message });
         if !(1..=1024).contains(&self.lines) {
@@ -183,7 +184,7 @@ impl UltrasoundConfig {
         Ok(())
     }
 
-    /// Wavelength at the centre frequency [m].
+    /// Wavelength at the centre frequency \[m\].
     pub fn wavelength(&self) -> f64 {
         SCANNER_SPEED / (self.frequency_mhz * 1e6)
     }
@@ -192,13 +193,13 @@ impl UltrasoundConfig {
 /// The probe's imaging frame (world).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ImagingFrame {
-    /// Centre of the face [m].
+    /// Centre of the face \[m\].
     pub origin: [f64; 3],
     /// Unit direction along the array (image columns left to right).
     pub lateral: [f64; 3],
     /// Unit beam direction, out of the face into the body (image rows top to bottom).
     pub axis: [f64; 3],
-    /// Half the face's width across the array (elevation) [m]: an element couples
+    /// Half the face's width across the array (elevation) \[m\]: an element couples
     /// where any part of its strip of face touches the skin (gel fills the wedge).
     pub half_width: f64,
 }
@@ -242,19 +243,6 @@ fn tissue_index(t: Tissue) -> u8 {
 /// `exp(−κ·x)` helpers: nepers per metre of two-way amplitude loss at `db_cm_mhz`.
 fn nepers_per_m(db_cm_mhz: f64, f_mhz: f64) -> f64 {
     db_cm_mhz * f_mhz * 2.0 * 100.0 * std::f64::consts::LN_10 / 20.0
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn normalize(v: [f64; 3]) -> [f64; 3] {
-    let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    if n > 0.0 { v.map(|x| x / n) } else { v }
 }
 
 /// A 1-D Gaussian kernel of standard deviation `sigma` samples (`[1]` when tiny).

@@ -15,7 +15,7 @@
 
 use super::tissue::Tissue;
 
-/// The torso size the anatomy was laid out for [m]; other sizes scale it per axis.
+/// The torso size the anatomy was laid out for \[m\]; other sizes scale it per axis.
 pub const REFERENCE_SIZE: [f64; 3] = [0.28, 0.35, 0.105];
 
 /// An axis-aligned analytic shape (material coordinates, metres).
@@ -207,7 +207,7 @@ pub struct SegmentScratch {
 
 impl Phantom {
     /// The abdomen phantom for a torso box of `size` (x across, y head (+) to feet, d
-    /// depth) [m]: skin, subcutaneous fat, abdominal wall muscle, ribs over the upper
+    /// depth) \[m\]: skin, subcutaneous fat, abdominal wall muscle, ribs over the upper
     /// (+y) third, liver (right, under the ribs) with two vessels, a kidney (lower left)
     /// with cortex, medulla and sinus, aorta and vena cava along y, and a vertebral body
     /// deep on the midline, over the table.

@@ -30,7 +30,7 @@ fn fade(t: f64) -> f64 {
 }
 
 impl Speckle {
-    /// A field with lattice `cell` sizes `[x, y, d]` [m], seeded by `seed`.
+    /// A field with lattice `cell` sizes `[x, y, d]` \[m\], seeded by `seed`.
     pub fn new(seed: u64, cell: [f64; 3]) -> Self {
         Self {
             seed: mix(seed ^ 0x5eed_ec60_0000_0001),

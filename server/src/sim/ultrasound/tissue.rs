@@ -46,7 +46,7 @@ pub enum Tissue {
 /// Acoustic properties of one tissue.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Acoustics {
-    /// Characteristic impedance [MRayl].
+    /// Characteristic impedance \[MRayl\].
     pub impedance_mrayl: f64,
     /// Attenuation coefficient [dB/(cm·MHz)], assumed linear in frequency.
     pub attenuation_db_cm_mhz: f64,

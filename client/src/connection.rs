@@ -11,7 +11,7 @@ use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
 
 use super::error::{ConnectError, ControlCallError};
-use crate::transport::services::{
+use echogym_protocol::services::{
     Access, ControlService, EventService, MAX_CLIENTS, control_service, event_service,
 };
 
@@ -66,7 +66,7 @@ pub struct Connection {
 impl Connection {
     /// Attach to the running server named `options.name`.
     pub fn connect(options: &ConnectOptions) -> Result<Self, ConnectError> {
-        crate::quiet_iceoryx_logs();
+        echogym_protocol::quiet_iceoryx_logs();
         let names = ServiceNames::new(&options.name)
             .map_err(|e| ConnectError::InvalidOptions(e.to_string()))?;
         let config = options

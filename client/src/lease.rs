@@ -15,7 +15,7 @@ use iceoryx2::sample::Sample;
 use super::connection::{Connection, node_alive};
 use super::error::{ControlCallError, LeaseError};
 use super::wait::spin_then_block;
-use crate::transport::services::{
+use echogym_protocol::services::{
     Access, ActionService, EventService, ObsService, event_service, lease_channel,
 };
 

@@ -9,7 +9,7 @@ use std::time::Duration;
 const PURE_SPIN: Duration = Duration::from_micros(20);
 
 /// One pause of a busy-poll that has waited `waited` so far.
-pub(crate) fn pause(waited: Duration) {
+pub fn pause(waited: Duration) {
     if waited < PURE_SPIN {
         std::hint::spin_loop();
     } else {

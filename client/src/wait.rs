@@ -2,7 +2,7 @@
 
 use std::time::{Duration, Instant};
 
-use crate::spin::pause;
+use echogym_protocol::pacing::pause;
 
 use iceoryx2::port::listener::Listener;
 use iceoryx2::prelude::*;

@@ -1,7 +1,7 @@
 //! How every echogym service is built, shared by server and client so both sides open
 //! services with identical settings (iceoryx2 refuses mismatches).
 
-use echogym_protocol::{ActionHeader, ControlHeader, ObsHeader, PAYLOAD_ALIGN};
+use crate::{ActionHeader, ControlHeader, ObsHeader, PAYLOAD_ALIGN};
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::{
     event::PortFactory as EventFactory, publish_subscribe::PortFactory as PubSubFactory,
@@ -9,17 +9,16 @@ use iceoryx2::service::port_factory::{
 };
 
 /// Clients (processes) one server accepts at once.
-pub(crate) const MAX_CLIENTS: usize = 512;
+pub const MAX_CLIENTS: usize = 512;
 
 /// The action service of a lease.
-pub(crate) type ActionService<S> = PubSubFactory<S, [u8], ActionHeader>;
+pub type ActionService<S> = PubSubFactory<S, [u8], ActionHeader>;
 /// The observation service of a lease.
-pub(crate) type ObsService<S> = PubSubFactory<S, [u8], ObsHeader>;
+pub type ObsService<S> = PubSubFactory<S, [u8], ObsHeader>;
 /// The control service of a server.
-pub(crate) type ControlService<S> =
-    RequestResponseFactory<S, [u8], ControlHeader, [u8], ControlHeader>;
+pub type ControlService<S> = RequestResponseFactory<S, [u8], ControlHeader, [u8], ControlHeader>;
 /// An event service (wake or ready).
-pub(crate) type EventService<S> = EventFactory<S>;
+pub type EventService<S> = EventFactory<S>;
 
 /// Failure to create or open one service.
 #[derive(Debug, thiserror::Error)]
@@ -32,7 +31,8 @@ pub struct ServiceError {
 }
 
 impl ServiceError {
-    pub(crate) fn new(service: &str, reason: impl std::fmt::Debug) -> Self {
+    /// A failure of `service` with iceoryx2's `reason`.
+    pub fn new(service: &str, reason: impl std::fmt::Debug) -> Self {
         Self {
             service: service.to_owned(),
             reason: format!("{reason:?}"),
@@ -42,8 +42,10 @@ impl ServiceError {
 
 /// Whether to create a service (server) or open an existing one (client).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Access {
+pub enum Access {
+    /// Create the service (the server).
     Create,
+    /// Open the server's service (a client).
     Open,
 }
 
@@ -57,7 +59,7 @@ fn alignment() -> Alignment {
 
 /// A lease's pub-sub service (action or obs): one publisher, one subscriber, one
 /// exchange in flight, so two buffered samples are plenty.
-pub(crate) fn lease_channel<S: Service, H: std::fmt::Debug + ZeroCopySend>(
+pub fn lease_channel<S: Service, H: std::fmt::Debug + ZeroCopySend>(
     node: &Node<S>,
     name: &str,
     access: Access,
@@ -80,7 +82,7 @@ pub(crate) fn lease_channel<S: Service, H: std::fmt::Debug + ZeroCopySend>(
 }
 
 /// An event service with `notifiers` notifiers and one listener.
-pub(crate) fn event_service<S: Service>(
+pub fn event_service<S: Service>(
     node: &Node<S>,
     name: &str,
     notifiers: usize,
@@ -99,7 +101,7 @@ pub(crate) fn event_service<S: Service>(
 }
 
 /// The control service: JSON requests from up to [`MAX_CLIENTS`] clients.
-pub(crate) fn control_service<S: Service>(
+pub fn control_service<S: Service>(
     node: &Node<S>,
     name: &str,
     access: Access,

@@ -1,4 +1,8 @@
-//! The Rust client: connect to a server by name, lease envs, exchange batches.
+//! echogym's Rust client: connect to an `echogym serve` daemon by name, lease envs,
+//! exchange batches.
+//!
+//! Depends on the wire contract (`echogym-protocol`) only, never on the server: the
+//! Python extension and the end-to-end tests build on it.
 //!
 //! Ports use `ipc_threadsafe` so a [`Lease`] can be moved across threads (the Python
 //! extension releases the GIL while waiting). Observations stay in the server's
@@ -7,6 +11,7 @@
 mod connection;
 mod error;
 mod lease;
+pub mod testing;
 mod wait;
 
 pub use connection::{ConnectOptions, Connection};

@@ -1,7 +1,8 @@
-//! The seed's calibration method (report chapter 3.4/4.2), for comparison: per site,
-//! regress `F/r` on `v/r` (r: penetration depth, v: penetration velocity) over the
-//! in-contact samples; the slope is the damping `b`, the intercept the stiffness `k` of a
-//! linear mass-spring-damper, and `k/b` the ratio the seed tuned MuJoCo with.
+//! The calibration method of the thesis echogym grew from (the "seed" report, chapters
+//! 3.4/4.2), for comparison: per site, regress `F/r` on `v/r` (r: penetration depth, v:
+//! penetration velocity) over the in-contact samples; the slope is the damping `b`, the
+//! intercept the stiffness `k` of a linear mass-spring-damper, and `k/b` the ratio the
+//! thesis tuned MuJoCo with.
 
 use serde::Serialize;
 
@@ -9,7 +10,7 @@ use super::features::Series;
 
 /// One site's regression.
 #[derive(Debug, Clone, Serialize)]
-pub struct SeedFit {
+pub struct ThesisFit {
     /// Site.
     pub site: String,
     /// Slope (≈ damping) [N·s/m].
@@ -27,9 +28,9 @@ pub struct SeedFit {
     pub points: Vec<(f64, f64)>,
 }
 
-/// The regression per site, with depth measured from the nominal surface (as the seed
+/// The regression per site, with depth measured from the nominal surface (as the thesis
 /// did: it knew no offset) and samples deeper than 2 mm.
-pub fn seed_method(series: &[Series], nominal_offset: f64) -> Vec<SeedFit> {
+pub fn thesis_method(series: &[Series], nominal_offset: f64) -> Vec<ThesisFit> {
     let mut sites: Vec<String> = series.iter().map(|s| s.site.clone()).collect();
     sites.sort();
     sites.dedup();
@@ -64,7 +65,7 @@ pub fn seed_method(series: &[Series], nominal_offset: f64) -> Vec<SeedFit> {
                 0.0
             };
             let step = (n / 2000).max(1);
-            Some(SeedFit {
+            Some(ThesisFit {
                 site,
                 slope,
                 intercept,

@@ -1,0 +1,228 @@
+//! Attaching a lease in two halves, so that no client waits on another's construction:
+//! [`Dispatcher::begin_attach`] validates the request and queues the build on the
+//! builder thread; [`Dispatcher::finish_builds`] opens the lease's services and answers
+//! once the batch is back. A client that dies or stops waiting in between cancels its
+//! build (checked every pass over the pending attaches).
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use echogym_protocol::{AttachReply, AttachRequest, ControlError, ControlErrorKind, ControlReply};
+
+use super::builder::BuildJob;
+use super::dispatcher::Dispatcher;
+use super::lease::Lease;
+use super::pending::PendingAttach;
+use super::reply::{ControlRequestHandle, error, refusal, respond};
+use crate::pool::BatchBuildError;
+
+/// What an accepted attach request hands to [`Dispatcher::queue_attach`].
+pub(super) struct AttachPlan {
+    request: AttachRequest,
+    client_node: u128,
+    spec: echogym_protocol::EnvSpec,
+}
+
+impl Dispatcher {
+    /// Validate an attach request: the plan to build, or the refusal to send.
+    pub(super) fn begin_attach(&self, request: AttachRequest) -> Result<AttachPlan, ControlError> {
+        if self.shutdown.is_requested() {
+            return Err(refusal(
+                ControlErrorKind::ShuttingDown,
+                "the server is shutting down",
+            ));
+        }
+        let Ok(client_node) = request.client_node_id.parse::<u128>() else {
+            return Err(refusal(
+                ControlErrorKind::InvalidRequest,
+                format!(
+                    "client_node_id {:?} is not a node id",
+                    request.client_node_id
+                ),
+            ));
+        };
+        if request.num_envs == 0 {
+            return Err(refusal(
+                ControlErrorKind::InvalidRequest,
+                "num_envs must be at least 1",
+            ));
+        }
+        let factory = self
+            .registry
+            .get(&request.env_id)
+            .map_err(|e| refusal(ControlErrorKind::UnknownEnv, e.to_string()))?;
+        let spec = factory
+            .spec(&request.config)
+            .map_err(|e| refusal(ControlErrorKind::InvalidConfig, e.to_string()))?;
+        let leases = self.leases.len() + self.pending.len();
+        if leases >= self.options.max_leases {
+            return Err(refusal(
+                ControlErrorKind::CapacityExceeded,
+                format!(
+                    "the server holds its maximum of {} leases ({} of them being built)",
+                    self.options.max_leases,
+                    self.pending.len()
+                ),
+            ));
+        }
+        let envs_in_use = self.envs_in_use();
+        let fits = envs_in_use
+            .checked_add(request.num_envs)
+            .is_some_and(|total| total <= self.options.max_envs);
+        if !fits {
+            return Err(refusal(
+                ControlErrorKind::CapacityExceeded,
+                format!(
+                    "{} more envs would exceed the server's max_envs of {} ({envs_in_use} in use or being built)",
+                    request.num_envs, self.options.max_envs
+                ),
+            ));
+        }
+        Ok(AttachPlan {
+            request,
+            client_node,
+            spec,
+        })
+    }
+
+    /// Queue the build of an accepted attach; its reply is sent by
+    /// [`Self::finish_builds`].
+    pub(super) fn queue_attach(&mut self, plan: AttachPlan, request: ControlRequestHandle) {
+        let ticket = self.next_ticket;
+        self.next_ticket += 1;
+        let cancel = Arc::new(AtomicBool::new(false));
+        let AttachPlan {
+            request: attach,
+            client_node,
+            spec,
+        } = plan;
+        let queued = self.builder.build(BuildJob {
+            ticket,
+            spec,
+            num_envs: attach.num_envs,
+            mode: attach.autoreset_mode,
+            cancel: cancel.clone(),
+        });
+        if !queued {
+            respond(
+                &request,
+                &error(ControlErrorKind::Internal, "the env builder is gone"),
+            );
+            return;
+        }
+        tracing::debug!(ticket, env = %attach.env_id, num_envs = attach.num_envs, "build queued");
+        self.pending.push(PendingAttach {
+            request,
+            ticket,
+            cancel,
+            client_node,
+            client_label: attach.client_label,
+            env_id: attach.env_id,
+            num_envs: attach.num_envs,
+            mode: attach.autoreset_mode,
+            started: Instant::now(),
+        });
+    }
+
+    /// Answer every attach whose build came back; true if any did.
+    pub(super) fn finish_builds(&mut self) -> bool {
+        let mut finished = false;
+        while let Some(built) = self.builder.finished() {
+            finished = true;
+            let Some(index) = self.pending.iter().position(|p| p.ticket == built.ticket) else {
+                continue;
+            };
+            let pending = self.pending.swap_remove(index);
+            let batch = match built.result {
+                Ok(batch) => batch,
+                Err(BatchBuildError::Cancelled { built, wanted }) => {
+                    tracing::info!(
+                        client = %pending.client_label,
+                        env = %pending.env_id,
+                        built,
+                        wanted,
+                        "attach cancelled: the client died or stopped waiting"
+                    );
+                    continue;
+                }
+                Err(e) => {
+                    let kind = match e {
+                        BatchBuildError::Panicked { .. } => ControlErrorKind::Internal,
+                        _ => ControlErrorKind::InvalidConfig,
+                    };
+                    tracing::warn!(client = %pending.client_label, error = %e, "attach failed");
+                    respond(&pending.request, &error(kind, e.to_string()));
+                    continue;
+                }
+            };
+            if !pending.request.is_connected() || pending.cancel.load(Ordering::Relaxed) {
+                tracing::info!(
+                    client = %pending.client_label,
+                    env = %pending.env_id,
+                    "attach dropped: the client stopped waiting before its envs were built"
+                );
+                self.builder.discard(batch);
+                continue;
+            }
+            let lease_id = (u64::from(self.instance) << 32) | u64::from(self.next_lease);
+            self.next_lease += 1;
+            let lease = match Lease::open(
+                &self.node,
+                &self.names,
+                lease_id,
+                batch,
+                pending.client_node,
+                pending.client_label.clone(),
+            ) {
+                Ok(lease) => lease,
+                Err(e) => {
+                    respond(
+                        &pending.request,
+                        &error(ControlErrorKind::Internal, e.to_string()),
+                    );
+                    continue;
+                }
+            };
+            let reply = AttachReply {
+                lease_id,
+                spec: lease.batch.spec().clone(),
+                layout: lease.batch.layout().clone(),
+                autoreset_mode: pending.mode,
+                server_spin_us: self.options.spin.as_micros() as u64,
+                server_node_id: self.node.id().value().to_string(),
+            };
+            tracing::info!(
+                lease = lease_id,
+                env = %pending.env_id,
+                num_envs = pending.num_envs,
+                client = %pending.client_label,
+                build_ms = built.elapsed.as_secs_f64() * 1e3,
+                "lease attached"
+            );
+            self.leases.push(lease);
+            respond(&pending.request, &ControlReply::Attached(reply));
+        }
+        finished
+    }
+
+    /// Cancel the builds nobody waits for any more: the client stopped waiting (its
+    /// request was dropped) or its node is not in `alive` (when given).
+    pub(super) fn cancel_abandoned(&mut self, alive: Option<&[u128]>) {
+        for pending in &self.pending {
+            let dead = alive.is_some_and(|alive| !alive.contains(&pending.client_node));
+            if (dead || !pending.request.is_connected())
+                && !pending.cancel.swap(true, Ordering::Relaxed)
+            {
+                tracing::debug!(ticket = pending.ticket, dead, "cancelling a build");
+            }
+        }
+    }
+
+    /// Envs held by leases and being built.
+    pub(super) fn envs_in_use(&self) -> usize {
+        let held: usize = self.leases.iter().map(|l| l.batch.len()).sum();
+        let building: usize = self.pending.iter().map(|p| p.num_envs).sum();
+        held + building
+    }
+}

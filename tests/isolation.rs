@@ -1,0 +1,173 @@
+//! One client cannot stall the others: envs are built off the dispatcher, and a build
+//! nobody waits for any more is cancelled. Real server process, real clients.
+
+mod common;
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use common::{TestServer, attach_null};
+use echogym_client::{AttachOptions, ConnectOptions, Connection, ControlCallError};
+use echogym_protocol::{AutoresetMode, ControlReply, ControlRequest, ServerStatus};
+
+fn status(connection: &Connection) -> ServerStatus {
+    match connection.request(&ControlRequest::Status).expect("status") {
+        ControlReply::Status(status) => status,
+        other => panic!("unexpected reply {other:?}"),
+    }
+}
+
+fn scan(num_envs: usize) -> AttachOptions {
+    AttachOptions {
+        env_id: "echogym/UltrasoundScan-v0".into(),
+        num_envs,
+        config: serde_json::Map::new(),
+        autoreset_mode: AutoresetMode::SameStep,
+    }
+}
+
+#[test]
+fn a_big_attach_does_not_stall_a_bystander() {
+    let server = TestServer::start("isolation-stall");
+    let options = server.options();
+    let attaching = Arc::new(AtomicBool::new(false));
+    let done = Arc::new(AtomicBool::new(false));
+
+    // The bystander steps one Null env as fast as it can and records the slowest step
+    // and how many steps it took while the other client's attach was under way.
+    let bystander = {
+        let (options, attaching, done) = (options.clone(), attaching.clone(), done.clone());
+        std::thread::spawn(move || {
+            let connection = Connection::connect(&options).expect("connect");
+            let mut lease = attach_null(
+                &connection,
+                1,
+                serde_json::json!({}),
+                AutoresetMode::SameStep,
+            );
+            lease.reset(None, None).expect("reset");
+            let (mut slowest, mut steps_during) = (Duration::ZERO, 0usize);
+            while !done.load(Ordering::SeqCst) {
+                let started = Instant::now();
+                lease.step(&[0.0; 7], None).expect("step");
+                if attaching.load(Ordering::SeqCst) {
+                    slowest = slowest.max(started.elapsed());
+                    steps_during += 1;
+                }
+            }
+            (slowest, steps_during)
+        })
+    };
+    std::thread::sleep(Duration::from_millis(200));
+
+    let connection = server.connect();
+    attaching.store(true, Ordering::SeqCst);
+    let started = Instant::now();
+    let lease = connection.attach(&scan(384)).expect("attach 384 scan envs");
+    let attach_time = started.elapsed();
+    attaching.store(false, Ordering::SeqCst);
+    done.store(true, Ordering::SeqCst);
+    let (slowest, steps_during) = bystander.join().expect("bystander");
+    drop(lease);
+
+    eprintln!(
+        "attach of 384 scan envs: {:.0} ms; bystander: {steps_during} steps meanwhile, slowest {:.2} ms",
+        attach_time.as_secs_f64() * 1e3,
+        slowest.as_secs_f64() * 1e3
+    );
+    assert!(
+        attach_time > Duration::from_millis(100),
+        "the attach ({attach_time:?}) is too quick to show a stall"
+    );
+    assert!(
+        steps_during >= 10,
+        "the bystander stepped only {steps_during} times during the attach"
+    );
+    // Before building moved off the dispatcher, the slowest step was the whole build.
+    assert!(
+        slowest < Duration::from_millis(50) && slowest < attach_time / 4,
+        "a bystander step took {slowest:?} during a {attach_time:?} attach"
+    );
+}
+
+#[test]
+fn an_attach_nobody_waits_for_is_cancelled() {
+    let server = TestServer::start("isolation-cancel");
+    let impatient = Connection::connect(&ConnectOptions {
+        control_timeout: Duration::from_millis(300),
+        ..server.options()
+    })
+    .expect("connect");
+    // ≈ 1.5 ms per env: seconds of building, far beyond the client's 0.3 s patience.
+    let started = Instant::now();
+    match impatient.attach(&scan(4000)) {
+        Err(ControlCallError::Timeout(_)) => {}
+        Err(other) => panic!("expected a timeout, got {other}"),
+        Ok(_) => panic!("4000 scan envs built within 0.3 s?"),
+    }
+    assert!(started.elapsed() < Duration::from_secs(2));
+
+    let observer = server.connect();
+    let deadline = Instant::now() + Duration::from_secs(3);
+    loop {
+        let now = status(&observer);
+        assert!(now.leases.is_empty(), "a lease was made for nobody");
+        if now.building.is_empty() {
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the abandoned build still runs: {:?}",
+            now.building
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // Cancelled, not finished: the builder is free again at once.
+    let started = Instant::now();
+    let lease = observer.attach(&scan(1)).expect("attach after cancel");
+    assert!(
+        started.elapsed() < Duration::from_secs(1),
+        "the builder was still busy: {:?}",
+        started.elapsed()
+    );
+    drop(lease);
+    assert!(status(&observer).leases.is_empty());
+}
+
+#[test]
+fn bad_attach_requests_are_refused_and_the_server_serves_on() {
+    let server = TestServer::start("isolation-refuse");
+    let connection = server.connect();
+    for (options, expected) in [
+        (
+            AttachOptions {
+                num_envs: 0,
+                ..scan(1)
+            },
+            "num_envs",
+        ),
+        (
+            AttachOptions {
+                num_envs: usize::MAX,
+                ..scan(1)
+            },
+            "max_envs",
+        ),
+    ] {
+        match connection.attach(&options) {
+            Err(ControlCallError::Refused { message, .. }) => {
+                assert!(message.contains(expected), "{message}")
+            }
+            Err(other) => panic!("expected a refusal naming {expected}, got {other}"),
+            Ok(_) => panic!("attach of {} envs accepted", options.num_envs),
+        }
+    }
+    let mut lease = attach_null(
+        &connection,
+        2,
+        serde_json::json!({}),
+        AutoresetMode::SameStep,
+    );
+    lease.reset(None, None).expect("the server serves on");
+}
