@@ -46,7 +46,7 @@ class PrivateServer:
                 "--name",
                 name,
                 "--log",
-                os.environ.get("ECHOGYM_LOG", "warn"),
+                os.environ.get("ECHOGYM_LOG") or os.environ.get("RUST_LOG") or "warn",
                 "--exit-with-parent",
                 str(os.getpid()),
             ],

@@ -81,33 +81,51 @@ pub struct CalibrateOptions {
     pub progress: bool,
 }
 
-/// A progress bar on stderr.
+/// Progress on stderr: a bar (indicatif) on a terminal, one plain line per stage in a
+/// pipe or log file (no escape codes there).
 struct Progress {
-    enabled: bool,
+    bar: Option<indicatif::ProgressBar>,
+    /// Stages in all; 0 when progress is off.
     total: usize,
     done: usize,
 }
 
 impl Progress {
+    fn new(enabled: bool, total: usize) -> Self {
+        let terminal = std::io::IsTerminal::is_terminal(&std::io::stderr());
+        let bar = (enabled && terminal).then(|| {
+            let bar = indicatif::ProgressBar::new(total as u64);
+            if let Ok(style) =
+                indicatif::ProgressStyle::with_template("[{bar:30}] {pos}/{len} {msg}")
+            {
+                bar.set_style(style.progress_chars("#>."));
+            }
+            bar
+        });
+        Self {
+            bar,
+            total: if enabled { total } else { 0 },
+            done: 0,
+        }
+    }
+
     fn stage(&mut self, what: &str) {
-        if !self.enabled {
+        if self.total == 0 {
             return;
         }
-        let width = 30;
-        let filled = self.done * width / self.total;
-        eprint!(
-            "\r\x1b[2K[{}{}] {}/{} {what}",
-            "#".repeat(filled),
-            ".".repeat(width - filled),
-            self.done,
-            self.total
-        );
+        match &self.bar {
+            Some(bar) => {
+                bar.set_position(self.done as u64);
+                bar.set_message(what.to_owned());
+            }
+            None => eprintln!("[{}/{}] {what}", self.done + 1, self.total),
+        }
         self.done += 1;
     }
 
     fn finish(&self) {
-        if self.enabled {
-            eprintln!("\r\x1b[2K[{}] done", "#".repeat(30));
+        if let Some(bar) = &self.bar {
+            bar.finish_with_message("done");
         }
     }
 }
@@ -154,11 +172,7 @@ pub struct Outcome {
 
 /// Run the whole calibration and write the outputs into `options.out`.
 pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> {
-    let mut progress = Progress {
-        enabled: options.progress,
-        total: 6,
-        done: 0,
-    };
+    let mut progress = Progress::new(options.progress, 6);
     progress.stage("reading the dataset");
     let mut dataset = Dataset::read(&options.dataset)?;
     for rec in &mut dataset.recordings {
