@@ -1,14 +1,42 @@
 """Type stubs of the native extension `echogym._native` (pyo3 + rust-numpy)."""
 
 from os import PathLike
+from typing import final
 
 import numpy as np
 from numpy.typing import NDArray
 
+__all__ = [
+    "__version__",
+    "PROTOCOL_VERSION",
+    "NativeClient",
+    "NativeLease",
+    "SampleMemory",
+    "cli_main",
+    "resolve_spec",
+    "registered_envs",
+    "leftover_segments",
+    "remove_location",
+    "EchogymError",
+    "ServerNotRunningError",
+    "VersionMismatchError",
+    "ServerStoppedError",
+    "LeaseLostError",
+    "EnvClosedError",
+    "InvalidActionError",
+    "UnknownEnvError",
+    "InvalidConfigError",
+    "CapacityError",
+    "NeedsResetError",
+    "EnvFailureError",
+    "TransportError",
+    "ControlTimeoutError",
+]
+
 __version__: str
 PROTOCOL_VERSION: int
 
-BatchViews = tuple[
+_BatchViews = tuple[
     tuple[np.ndarray, ...],  # obs: one read-only array per field, shape (num_envs, *field_shape)
     NDArray[np.float32],  # reward (num_envs,)
     NDArray[np.bool_],  # terminated (num_envs,)
@@ -18,15 +46,16 @@ BatchViews = tuple[
     NDArray[np.float32] | None,  # final_info (same_step autoreset only)
 ]
 
+@final
 class NativeClient:
-    def __init__(
-        self,
+    def __new__(
+        cls,
         name: str = "default",
         prefix: str | None = None,
         root: str | PathLike[str] | None = None,
         spin_us: int = 200,
         label: str | None = None,
-    ) -> None: ...
+    ) -> NativeClient: ...
     def request(self, request_json: str, protocol_version: int | None = None) -> str: ...
     def attach(
         self,
@@ -40,11 +69,12 @@ class NativeClient:
     @property
     def node_id(self) -> str: ...
 
+@final
 class NativeLease:
-    def step(self, actions: NDArray[np.float32]) -> BatchViews: ...
+    def step(self, actions: NDArray[np.float32]) -> _BatchViews: ...
     def reset(
         self, mask: NDArray[np.bool_] | None = None, seeds: list[int | None] | None = None
-    ) -> BatchViews: ...
+    ) -> _BatchViews: ...
     def close(self) -> None: ...
     @property
     def closed(self) -> bool: ...
@@ -56,6 +86,11 @@ class NativeLease:
     def spec_json(self) -> str: ...
     @property
     def layout_json(self) -> str: ...
+
+@final
+class SampleMemory:
+    """The shared-memory observation sample the numpy views of a step point into (kept
+    alive by them; exposes the buffer protocol)."""
 
 def cli_main(argv: list[str]) -> int: ...
 def resolve_spec(env_id: str, config_json: str) -> str: ...
