@@ -79,6 +79,39 @@ fn restart_after_kill_9_cleans_stale_resources() {
     assert_eq!(second.wait(), Some(0));
 }
 
+#[test]
+fn restart_after_kill_9_while_an_old_client_lives() {
+    let mut first = TestServer::start("phoenix-held");
+    let location = first.location.clone();
+    let old_connection = first.connect();
+    let mut old_lease = attach_null(&old_connection, 1, json!({}), AutoresetMode::Disabled);
+    old_lease.reset(None, None).unwrap();
+    first.signal("KILL");
+    assert_eq!(first.wait(), None, "killed by a signal");
+
+    // The old client still holds its connection and lease (and so the old services)
+    // while a new server with the same name starts.
+    let second = TestServer::start_in("phoenix-held", location, &[]);
+    assert_eq!(
+        old_lease.step(&[0.0; 7], None).unwrap_err(),
+        LeaseError::ServerStopped,
+        "the old lease learns its server is gone"
+    );
+    // The old connection belongs to the dead server too: a typed error, not a hang.
+    let started = std::time::Instant::now();
+    assert!(matches!(
+        old_connection.request(&echogym_protocol::ControlRequest::Status),
+        Err(echogym_client::ControlCallError::ServerStopped)
+    ));
+    assert!(started.elapsed() < std::time::Duration::from_secs(2));
+    // New clients reach the new server.
+    let mut lease = attach_null(&second.connect(), 1, json!({}), AutoresetMode::Disabled);
+    lease.reset(None, None).unwrap();
+    let payload = lease.step(&[0.25; 7], None).unwrap().to_vec();
+    assert_eq!(null_obs(&lease, &payload, 0)[1], 0.25);
+    drop((lease, old_lease, old_connection));
+}
+
 /// Child process body for `dead_client_lease_is_reclaimed`: attach and step forever.
 #[test]
 #[ignore = "run as a child process by the lifecycle tests"]

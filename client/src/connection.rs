@@ -50,6 +50,9 @@ pub(crate) struct Inner {
     pub options: ConnectOptions,
     pub names: ServiceNames,
     pub config: Config,
+    /// The server node this connection reached. A server restarted under the same name
+    /// is another node: requests to the old one end in `ServerStopped`.
+    pub server: u128,
     control: Mutex<ControlClient>,
     pub wake: Notifier<ipc_threadsafe::Service>,
     _control_service: ControlService<ipc_threadsafe::Service>,
@@ -98,9 +101,9 @@ impl Connection {
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<ipc_threadsafe::Service>()
             .map_err(|e| ConnectError::Ipc(format!("{e:?}")))?;
-        if !server_alive(&config, &options.name) {
+        let Some(server) = server_node(&config, &options.name) else {
             return Err(not_running());
-        }
+        };
         let control_service =
             control_service(&node, &names.control(), Access::Open).map_err(|_| not_running())?;
         let control = control_service
@@ -120,6 +123,7 @@ impl Connection {
                 options: options.clone(),
                 names,
                 config,
+                server,
                 control: Mutex::new(control),
                 wake,
                 _control_service: control_service,
@@ -206,7 +210,7 @@ impl Inner {
                 return Err(ControlCallError::Timeout(timeout));
             }
             if now >= next_check {
-                if !server_alive(&self.config, self.names.server()) {
+                if !node_alive(&self.config, self.server) {
                     return Err(ControlCallError::ServerStopped);
                 }
                 next_check = now + super::wait::LIVENESS_TICK;
@@ -217,11 +221,11 @@ impl Inner {
     }
 }
 
-/// Whether a live node of the server called `name` exists.
-pub(crate) fn server_alive(config: &Config, name: &str) -> bool {
+/// The node id of the live server called `name`, if one runs.
+pub(crate) fn server_node(config: &Config, name: &str) -> Option<u128> {
     use iceoryx2::node::NodeView;
     let prefix = format!("echogym-serve-{name}-");
-    let mut alive = false;
+    let mut found = None;
     let _ = Node::<ipc_threadsafe::Service>::list(config, |state| {
         if let NodeState::Alive(view) = &state
             && view
@@ -229,12 +233,12 @@ pub(crate) fn server_alive(config: &Config, name: &str) -> bool {
                 .as_ref()
                 .is_some_and(|d| is_server_node(&d.name().to_string(), &prefix))
         {
-            alive = true;
+            found = Some(view.id().value());
             return CallbackProgression::Stop;
         }
         CallbackProgression::Continue
     });
-    alive
+    found
 }
 
 /// `echogym-serve-<name>-<pid>` exactly (so `a` does not match server `a-b`).

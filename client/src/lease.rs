@@ -322,12 +322,14 @@ impl Lease {
         while let Ok(Some(sample)) = self.subscriber.receive() {
             stopped |= sample.user_header().status == StepStatus::ServerStopped as u32;
         }
-        let reason =
-            if !stopped && super::connection::server_alive(&inner.config, inner.names.server()) {
-                LeaseError::LeaseLost
-            } else {
-                LeaseError::ServerStopped
-            };
+        // The server this lease belongs to, not any server of that name: a restarted
+        // one does not know this lease.
+        let server_node: u128 = self.reply.server_node_id.parse().unwrap_or(0);
+        let reason = if !stopped && node_alive(&inner.config, server_node) {
+            LeaseError::LeaseLost
+        } else {
+            LeaseError::ServerStopped
+        };
         self.ended = Some(reason.clone());
         reason
     }

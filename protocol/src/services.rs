@@ -47,6 +47,9 @@ pub enum Access {
     Create,
     /// Open the server's service (a client).
     Open,
+    /// Open the service if it exists, else create it: a server taking over the
+    /// services of a dead predecessor that live clients still hold open.
+    OpenOrCreate,
 }
 
 fn service_name(name: &str) -> Result<ServiceName, ServiceError> {
@@ -78,6 +81,9 @@ pub fn lease_channel<S: Service, H: std::fmt::Debug + ZeroCopySend>(
     match access {
         Access::Create => builder.create().map_err(|e| ServiceError::new(name, e)),
         Access::Open => builder.open().map_err(|e| ServiceError::new(name, e)),
+        Access::OpenOrCreate => builder
+            .open_or_create()
+            .map_err(|e| ServiceError::new(name, e)),
     }
 }
 
@@ -97,6 +103,9 @@ pub fn event_service<S: Service>(
     match access {
         Access::Create => builder.create().map_err(|e| ServiceError::new(name, e)),
         Access::Open => builder.open().map_err(|e| ServiceError::new(name, e)),
+        Access::OpenOrCreate => builder
+            .open_or_create()
+            .map_err(|e| ServiceError::new(name, e)),
     }
 }
 
@@ -119,5 +128,8 @@ pub fn control_service<S: Service>(
     match access {
         Access::Create => builder.create().map_err(|e| ServiceError::new(name, e)),
         Access::Open => builder.open().map_err(|e| ServiceError::new(name, e)),
+        Access::OpenOrCreate => builder
+            .open_or_create()
+            .map_err(|e| ServiceError::new(name, e)),
     }
 }

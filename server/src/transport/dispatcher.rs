@@ -123,29 +123,30 @@ impl Dispatcher {
         node.try_cleanup_dead_nodes();
         super::permissions::harden(&options.location);
 
-        let control_service = match control_service(&node, &names.control(), Access::Create) {
-            Ok(service) => service,
-            Err(e) => {
-                return Err(match running_server_pid(&iox_config, &options.name) {
-                    Some(pid) => StartError::AlreadyRunning {
-                        name: options.name.clone(),
-                        pid: Some(pid),
-                    },
-                    None if e.reason.contains("AlreadyExists") => StartError::AlreadyRunning {
-                        name: options.name.clone(),
-                        pid: None,
-                    },
-                    None => e.into(),
-                });
-            }
+        // A live server of this name refuses us. A dead one's services may still be held
+        // open by its clients: we adopt them (its stale ports were cleaned just above),
+        // so a restart works while old clients live; their leases see their server gone.
+        let already_running = |pid| StartError::AlreadyRunning {
+            name: options.name.clone(),
+            pid,
         };
+        if let Some(pid) = running_server_pid(&iox_config, &options.name) {
+            return Err(already_running(Some(pid)));
+        }
+        let control_service = control_service(&node, &names.control(), Access::OpenOrCreate)?;
+        // A second server starting at the same moment gets here too; only one can hold
+        // the single server port (and the single wake listener).
         let control = control_service
             .server_builder()
             .initial_max_slice_len(64 * 1024)
             .allocation_strategy(AllocationStrategy::PowerOfTwo)
             .create()
-            .map_err(|e| ServiceError::new(&names.control(), e))?;
-        let wake_service = event_service(&node, &names.wake(), MAX_CLIENTS, Access::Create)?;
+            .map_err(|e| match running_server_pid(&iox_config, &options.name) {
+                Some(pid) => already_running(Some(pid)),
+                None if format!("{e:?}").contains("ExceedsMaxSupported") => already_running(None),
+                None => ServiceError::new(&names.control(), e).into(),
+            })?;
+        let wake_service = event_service(&node, &names.wake(), MAX_CLIENTS, Access::OpenOrCreate)?;
         let wake = wake_service
             .listener_builder()
             .create()
