@@ -67,6 +67,40 @@ fn written_datasets_read_back_equal() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+#[test]
+fn an_existing_folder_is_never_replaced() {
+    let dir = scratch("keep");
+    let target = dir.join("set");
+    std::fs::create_dir_all(&target).unwrap();
+    std::fs::write(target.join("precious.txt"), "mine").unwrap();
+    let mut writer = DatasetWriter::create(&target, "", 0.9, [0.0, 0.0]).unwrap();
+    writer.add("a.csv", "center", "press", press(500.0, 100));
+    let written = writer.finish().unwrap();
+    assert_eq!(written, dir.join("set-2"));
+    assert_eq!(
+        std::fs::read_to_string(target.join("precious.txt")).unwrap(),
+        "mine"
+    );
+    assert_eq!(Dataset::read(&written).unwrap().recordings.len(), 1);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_failed_write_leaves_nothing_behind() {
+    // The temporary folder vanishes under the writer (as a full disk fails a write):
+    // finish reports the error and nothing half-written remains.
+    let dir = scratch("failed");
+    let target = dir.join("set");
+    let mut writer = DatasetWriter::create(&target, "", 0.9, [0.0, 0.0]).unwrap();
+    for entry in std::fs::read_dir(&dir).unwrap().flatten() {
+        std::fs::remove_dir_all(entry.path()).unwrap();
+    }
+    writer.add("a.csv", "center", "press", press(500.0, 100));
+    assert!(matches!(writer.finish(), Err(RecordingsError::Io { .. })));
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 fn write_dataset(dir: &Path, csv: &str, format: &str, listed: &[&str]) {
     let recordings: Vec<_> = listed
         .iter()

@@ -14,6 +14,7 @@ import torch
 from gymnasium.utils.env_checker import check_env
 
 import echogym
+from conftest import Server
 
 PHYSICS_IDS = ["echogym/UltrasoundScan-v0", "echogym/PushCube-v0", "echogym/CalibrationPress-v0"]
 
@@ -115,7 +116,13 @@ def test_nested_config_and_errors_name_the_key(server):
     assert server.status()["leases"] == []
 
 
-def test_calibration_press_records_a_dataset(server, tmp_path):
+def test_calibration_press_records_a_dataset(ipc, tmp_path):
+    # Recordings are confined to the server's recordings root: this server's is tmp_path.
+    server = Server("pytest", ipc, "--recordings-root", str(tmp_path))
+    with pytest.raises(echogym.InvalidConfigError, match="record.dir.*outside"):
+        gym.make("echogym/CalibrationPress-v0", record={"dir": "/etc/echogym"})
+    with pytest.raises(echogym.InvalidConfigError, match=r"record.dir.*\.\."):
+        gym.make("echogym/CalibrationPress-v0", record={"dir": "../escape"})
     env = gym.make("echogym/CalibrationPress-v0", task={"site": "upper_left", "hold_time": 0.2},
                    record={"dir": str(tmp_path)})
     env.reset(seed=0)
@@ -138,6 +145,7 @@ def test_calibration_press_records_a_dataset(server, tmp_path):
     header, *rows = csv.read_text().splitlines()
     assert header.split(",")[:7] == ["t", "px", "py", "pz", "fx", "fy", "fz"]
     assert len(rows) >= steps
+    assert server.stop() == 0
 
 
 def test_rgb_array_render_mode_returns_the_camera_image(server):

@@ -131,6 +131,9 @@ struct ServeArgs {
     /// Most envs at once.
     #[arg(long)]
     max_envs: Option<usize>,
+    /// The folder every env's `record.dir` must lie in (default: the working directory).
+    #[arg(long)]
+    recordings_root: Option<PathBuf>,
     /// Log filter, e.g. `info` or `echogym=debug` (default: `RUST_LOG`, else the config
     /// file's `log`, else `info`).
     #[arg(long)]
@@ -169,6 +172,10 @@ impl ServeArgs {
         set(&mut config.housekeeping_ms, &self.housekeeping_ms);
         set(&mut config.max_leases, &self.max_leases);
         set(&mut config.max_envs, &self.max_envs);
+        if let Some(root) = &self.recordings_root {
+            config.recordings_root =
+                Some(std::path::absolute(root).unwrap_or_else(|_| root.clone()));
+        }
         set(&mut config.log, &self.log);
         set(&mut config.ipc.prefix, &self.ipc_prefix);
         set(&mut config.ipc.root, &self.ipc_root);

@@ -28,6 +28,9 @@ pub struct ServeConfig {
     pub max_leases: usize,
     /// Most envs held at once, over all leases. Default 65,536.
     pub max_envs: usize,
+    /// The folder every env's `record.dir` must lie in (relative ones are joined to it).
+    /// Default: the server's working directory at start.
+    pub recordings_root: Option<std::path::PathBuf>,
     /// Log filter (`tracing` env-filter syntax). Default `"info"`.
     pub log: String,
     /// Where iceoryx2 resources live. Default prefix `echogym_`, root
@@ -50,6 +53,7 @@ impl Default for ServeConfig {
             housekeeping_ms: 100,
             max_leases: 256,
             max_envs: 65_536,
+            recordings_root: None,
             log: "info".to_owned(),
             ipc: IpcLocation::from_env(),
             parent_pid: None,
@@ -117,6 +121,11 @@ impl ServeConfig {
         }
         if self.max_leases == 0 || self.max_envs == 0 {
             return Err(invalid("max_leases", "and max_envs must be positive"));
+        }
+        if let Some(root) = &self.recordings_root
+            && !root.is_absolute()
+        {
+            return Err(invalid("recordings_root", "must be an absolute path"));
         }
         if self.threads > 1024 {
             return Err(invalid("threads", "must be at most 1024"));

@@ -8,6 +8,12 @@ use crate::transport::{Dispatcher, Shutdown, StartError};
 /// is requested (signal, `echogym stop`, or the embedding code). Returns once every
 /// lease was told the server stopped and every shared-memory resource was removed.
 pub fn run(config: &ServeConfig, shutdown: Shutdown) -> Result<(), StartError> {
+    let root = match &config.recordings_root {
+        Some(root) => root.clone(),
+        None => std::env::current_dir().unwrap_or_else(|_| ".".into()),
+    };
+    crate::recordings::root::set_root(&root);
+    tracing::info!(root = %root.display(), "recordings root");
     let registry = if config.fault_injection {
         EnvRegistry::with_fault_injection()
     } else {

@@ -32,6 +32,7 @@
 mod dataset;
 mod error;
 mod recording;
+pub mod root;
 mod writer;
 
 pub use dataset::{Dataset, DatasetMeta, FORMAT, RecordingEntry, Segment};

@@ -2,28 +2,35 @@
 //!
 //! Recordings are handed to a background thread that writes their CSVs into a temporary
 //! folder beside the target; [`DatasetWriter::finish`] writes `dataset.json` and renames
-//! the folder into place, so readers never see a half-written dataset.
+//! the folder into place, so readers never see a half-written dataset. An existing
+//! folder is never replaced (the dataset takes the next free name), a failed write (a full
+//! disk) removes the temporary folder, and at most [`QUEUED_RECORDINGS`] recordings wait
+//! for the disk: beyond that, the env adding one waits (back-pressure, not memory).
 
 use std::path::{Path, PathBuf};
-use std::sync::mpsc::{Sender, channel};
+use std::sync::mpsc::{SyncSender, sync_channel};
 use std::thread::JoinHandle;
 
 use super::dataset::{DatasetMeta, FORMAT, RecordingEntry};
 use super::error::RecordingsError;
 use super::recording::Recording;
 
+/// Recordings queued for the writer thread before [`DatasetWriter::add`] blocks.
+pub const QUEUED_RECORDINGS: usize = 4;
+
 /// A dataset being written.
 pub struct DatasetWriter {
     target: PathBuf,
     temp: PathBuf,
     meta: DatasetMeta,
-    sender: Option<Sender<(PathBuf, Recording)>>,
+    sender: Option<SyncSender<(PathBuf, Recording)>>,
     thread: Option<JoinHandle<Result<(), RecordingsError>>>,
 }
 
 impl DatasetWriter {
-    /// Start a dataset that will appear at `target` (replacing one already there) with
-    /// the given metadata; its `recordings` list is filled by [`DatasetWriter::add`].
+    /// Start a dataset that will appear at `target` (or, if that exists, at the next
+    /// free `target-N`) with the given metadata; its `recordings` list is filled by
+    /// [`DatasetWriter::add`].
     pub fn create(
         target: &Path,
         description: &str,
@@ -38,7 +45,7 @@ impl DatasetWriter {
             path: temp.clone(),
             source,
         })?;
-        let (sender, receiver) = channel::<(PathBuf, Recording)>();
+        let (sender, receiver) = sync_channel::<(PathBuf, Recording)>(QUEUED_RECORDINGS);
         let thread = std::thread::Builder::new()
             .name("echogym-recorder".into())
             .spawn(move || {
@@ -69,12 +76,19 @@ impl DatasetWriter {
         })
     }
 
+    /// Whether the temporary folder lies inside the recordings root once symbolic links
+    /// are followed (see [`super::root`]).
+    pub fn inside_recordings_root(&self) -> bool {
+        super::root::still_inside(&self.temp)
+    }
+
     /// Metadata, e.g. to set `torso` or `notes` before finishing.
     pub fn meta_mut(&mut self) -> &mut DatasetMeta {
         &mut self.meta
     }
 
-    /// Queue a recording (written in the background).
+    /// Queue a recording (written in the background; waits while
+    /// [`QUEUED_RECORDINGS`] are queued).
     pub fn add(&mut self, file: &str, site: &str, protocol: &str, recording: Recording) {
         self.meta.recordings.push(RecordingEntry {
             file: file.to_owned(),
@@ -88,8 +102,17 @@ impl DatasetWriter {
         }
     }
 
-    /// Wait for the writer, write `dataset.json` and move the dataset into place.
+    /// Wait for the writer, write `dataset.json` and move the dataset into place; the
+    /// path it took. On failure nothing is left behind.
     pub fn finish(mut self) -> Result<PathBuf, RecordingsError> {
+        let result = self.complete();
+        if result.is_err() {
+            let _ = std::fs::remove_dir_all(&self.temp);
+        }
+        result
+    }
+
+    fn complete(&mut self) -> Result<PathBuf, RecordingsError> {
         drop(self.sender.take());
         if let Some(thread) = self.thread.take() {
             thread.join().map_err(|_| RecordingsError::Io {
@@ -97,19 +120,32 @@ impl DatasetWriter {
                 source: std::io::Error::other("recorder thread panicked"),
             })??;
         }
-        let meta_path = self.temp.join("dataset.json");
-        let text = serde_json::to_string_pretty(&self.meta).expect("metadata serializes");
         let io = |path: &Path, source| RecordingsError::Io {
             path: path.to_owned(),
             source,
         };
+        let meta_path = self.temp.join("dataset.json");
+        let text = serde_json::to_string_pretty(&self.meta)
+            .map_err(|e| io(&meta_path, std::io::Error::other(e)))?;
         std::fs::write(&meta_path, text).map_err(|e| io(&meta_path, e))?;
-        if self.target.exists() {
-            std::fs::remove_dir_all(&self.target).map_err(|e| io(&self.target, e))?;
-        }
-        std::fs::rename(&self.temp, &self.target).map_err(|e| io(&self.target, e))?;
-        Ok(self.target.clone())
+        let target = free_name(&self.target);
+        std::fs::rename(&self.temp, &target).map_err(|e| io(&target, e))?;
+        Ok(target)
     }
+}
+
+/// `target`, or `target-2`, `target-3`, … if it is taken (existing data is never replaced).
+fn free_name(target: &Path) -> PathBuf {
+    let name = target
+        .file_name()
+        .map_or_else(|| "dataset".into(), |n| n.to_string_lossy().into_owned());
+    (1..)
+        .map(|n| match n {
+            1 => target.to_owned(),
+            n => target.with_file_name(format!("{name}-{n}")),
+        })
+        .find(|candidate| !candidate.exists())
+        .unwrap_or_else(|| target.to_owned())
 }
 
 impl Drop for DatasetWriter {

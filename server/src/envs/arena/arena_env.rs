@@ -139,7 +139,12 @@ impl<T: Task> ArenaEnv<T> {
         let recorder = config
             .record
             .as_ref()
-            .map(|r| EpisodeRecorder::new(&r.dir, T::Config::ID, r.episodes));
+            .map(|r| {
+                let dir = crate::recordings::root::resolve(&r.dir)
+                    .map_err(|m| format!("record.dir: {m}"))?;
+                Ok::<_, String>(EpisodeRecorder::new(&dir, T::Config::ID, r.episodes))
+            })
+            .transpose()?;
         let ultrasound = match (&config.ultrasound, &config.torso) {
             (Some(us), Some(torso)) => {
                 let camera_fields: usize = config

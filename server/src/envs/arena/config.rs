@@ -37,7 +37,8 @@ pub trait TaskConfig:
 #[serde(deny_unknown_fields)]
 pub struct RecordConfig {
     /// Folder receiving one dataset per env instance
-    /// (`<dir>/<task>-<pid>-<instance>/dataset.json` + one CSV per episode).
+    /// (`<dir>/<task>-<pid>-<instance>/dataset.json` + one CSV per episode), inside the
+    /// server's recordings root (see [`crate::recordings::root`]).
     pub dir: std::path::PathBuf,
     /// Episodes recorded per env instance (later ones are not). Default 100.
     #[serde(default = "default_record_episodes")]
@@ -172,6 +173,7 @@ impl<T: TaskConfig> ArenaConfig<T> {
         }
         if let Some(record) = &self.record {
             check_range(id, "record.episodes", record.episodes, 1, 1_000_000)?;
+            crate::recordings::root::resolve(&record.dir).map_err(|m| wrap("record.dir", m))?;
         }
         self.task.validate(self)
     }

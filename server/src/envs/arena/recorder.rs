@@ -55,6 +55,15 @@ impl EpisodeRecorder {
                     (t.params().top_z(), t.params().center_xy)
                 });
             match DatasetWriter::create(&self.target, &self.description, surface, centre) {
+                Ok(writer) if !writer.inside_recordings_root() => {
+                    tracing::warn!(
+                        "recording disabled: {} leads outside the recordings root through a symbolic link",
+                        self.target.display()
+                    );
+                    drop(writer);
+                    self.budget = 0;
+                    return;
+                }
                 Ok(mut writer) => {
                     writer.meta_mut().torso = scene
                         .params()
