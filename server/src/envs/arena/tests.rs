@@ -221,6 +221,8 @@ fn randomization_stays_in_range_and_follows_the_seed() {
 
 #[test]
 fn scripted_press_reaches_depth_and_records_it() {
+    // Unit tests run without a daemon: the system temp folder is this process's root.
+    crate::recordings::root::set_root(&std::env::temp_dir());
     let dir = std::env::temp_dir().join(format!("echogym-press-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let config = serde_json::json!({
