@@ -137,3 +137,33 @@ fn panics_in_make_reset_step_and_drop_are_contained() {
     drop((held, bystander, connection));
     common::assert_clean_and_remove(&server.location);
 }
+
+#[test]
+fn a_step_past_its_deadline_ends_in_a_typed_error() {
+    let server = TestServer::start_in("deadline", fresh_location(), &["--fault-injection"]);
+    let impatient = Connection::connect(&echogym_client::ConnectOptions {
+        step_timeout: std::time::Duration::from_millis(300),
+        ..server.options()
+    })
+    .expect("connect");
+    let mut lease = faulty(&impatient, 1, serde_json::json!({"stall_ms": 2000})).expect("attach");
+    lease.reset(None, None).expect("reset");
+    let started = std::time::Instant::now();
+    match lease.step(&[0.0], None) {
+        Err(LeaseError::Timeout(_)) => {}
+        other => panic!("expected a timeout, got {other:?}"),
+    }
+    assert!(started.elapsed() < std::time::Duration::from_secs(1));
+    assert!(matches!(
+        lease.step(&[0.0], None),
+        Err(LeaseError::Timeout(_))
+    ));
+    // The server lives and serves others once the stalled step is over (a slow batch
+    // still delays other leases' exchanges while it runs: exchanges are not yet
+    // dispatched asynchronously).
+    let other = server.connect();
+    let mut bystander = attach_null(&other, 1, serde_json::json!({}), AutoresetMode::Disabled);
+    bystander.reset(None, None).expect("reset");
+    bystander_steps(&mut bystander, 0.5);
+    drop((lease, bystander, other, impatient));
+}

@@ -156,6 +156,7 @@ pub(crate) fn lease_error(e: LeaseError) -> PyErr {
         LeaseError::EnvFailure { .. } => EnvFailureError::new_err(message),
         LeaseError::VersionMismatch => VersionMismatchError::new_err(message),
         LeaseError::ServerStopped => ServerStoppedError::new_err(message),
+        LeaseError::Timeout(_) => ControlTimeoutError::new_err(message),
         LeaseError::LeaseLost => LeaseLostError::new_err(message),
         LeaseError::Closed => EnvClosedError::new_err(message),
         LeaseError::Protocol(_) | LeaseError::Ipc(_) => TransportError::new_err(message),

@@ -30,8 +30,21 @@ pub struct ConnectOptions {
     /// How long a control request may take. Default 120 s (building physics envs can
     /// take a while).
     pub control_timeout: Duration,
+    /// How long a step or reset may wait for its observation while the server lives;
+    /// beyond it the lease ends in [`crate::LeaseError::Timeout`]. Default 300 s, or
+    /// `ECHOGYM_STEP_TIMEOUT_S` (a huge batch of heavy envs can take minutes per step).
+    pub step_timeout: Duration,
     /// Shown by `echogym status`. Default `pid <pid>`.
     pub label: String,
+}
+
+/// The default step deadline: `ECHOGYM_STEP_TIMEOUT_S` seconds if set and valid, else 300.
+fn default_step_timeout() -> Duration {
+    std::env::var("ECHOGYM_STEP_TIMEOUT_S")
+        .ok()
+        .and_then(|v| v.trim().parse::<f64>().ok())
+        .filter(|s| s.is_finite() && *s > 0.0)
+        .map_or(Duration::from_secs(300), Duration::from_secs_f64)
 }
 
 impl Default for ConnectOptions {
@@ -41,6 +54,7 @@ impl Default for ConnectOptions {
             location: IpcLocation::from_env(),
             spin: Duration::from_micros(200),
             control_timeout: Duration::from_secs(120),
+            step_timeout: default_step_timeout(),
             label: format!("pid {}", std::process::id()),
         }
     }

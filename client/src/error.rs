@@ -91,6 +91,10 @@ pub enum LeaseError {
     /// Client and server speak different protocol versions.
     #[error("protocol version mismatch between client and server")]
     VersionMismatch,
+    /// No observation came within the step deadline although the server lives; the
+    /// lease is unusable (its answer may still arrive later).
+    #[error("no observation within {0:?} (ConnectOptions::step_timeout / ECHOGYM_STEP_TIMEOUT_S)")]
+    Timeout(std::time::Duration),
     /// The server stopped; the lease is gone.
     #[error("the server stopped")]
     ServerStopped,

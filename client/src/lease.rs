@@ -253,6 +253,8 @@ impl Lease {
         let obs_service = &self.obs_service;
         let config = &self.connection.inner.config;
         let server_node: u128 = self.reply.server_node_id.parse().unwrap_or(0);
+        let deadline = std::time::Instant::now() + self.connection.inner.options.step_timeout;
+        let step_timeout = self.connection.inner.options.step_timeout;
         let received = spin_then_block(
             spin,
             &self.listener,
@@ -274,6 +276,8 @@ impl Lease {
                     || !node_alive(config, server_node)
                 {
                     Err(LeaseError::ServerStopped)
+                } else if std::time::Instant::now() > deadline {
+                    Err(LeaseError::Timeout(step_timeout))
                 } else {
                     Ok(())
                 }
@@ -282,7 +286,7 @@ impl Lease {
         let sample = match received {
             Ok(sample) => sample,
             Err(e) => {
-                if e == LeaseError::ServerStopped {
+                if matches!(e, LeaseError::ServerStopped | LeaseError::Timeout(_)) {
                     self.ended = Some(e.clone());
                 }
                 return Err(e);

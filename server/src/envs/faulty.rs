@@ -5,7 +5,8 @@
 //! Observation `obs` (float32, 2): steps in the episode and the env's index in its batch.
 //! Config `panic_in`: `none` | `make` | `reset` | `step` | `drop`; `env_index`: which env
 //! misbehaves, counted over every Faulty env this server built, from 0 (default 0);
-//! `at_step`: the step that panics (default 1).
+//! `at_step`: the step that panics (default 1); `stall_ms`: that env sleeps this long in
+//! every step (a step that outlives the client's deadline).
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -46,6 +47,8 @@ pub struct FaultyConfig {
     pub env_index: usize,
     /// The episode step that panics (`panic_in = "step"`); 0 counts as 1.
     pub at_step: u64,
+    /// Milliseconds the chosen env sleeps in every step.
+    pub stall_ms: u64,
 }
 
 /// Factory of `echogym/Faulty-v0`; numbers the envs it builds.
@@ -94,6 +97,7 @@ impl EnvFactory for FaultyEnvFactory {
                 PanicIn::None
             },
             at_step: config.at_step.max(1),
+            stall: std::time::Duration::from_millis(if faulty { config.stall_ms } else { 0 }),
             index,
             step: 0,
         }))
@@ -103,6 +107,7 @@ impl EnvFactory for FaultyEnvFactory {
 struct FaultyEnv {
     panic_in: PanicIn,
     at_step: u64,
+    stall: std::time::Duration,
     index: usize,
     step: u64,
 }
@@ -118,6 +123,7 @@ impl Env for FaultyEnv {
 
     fn step(&mut self, _action: &[f32], out: &mut EnvOutput<'_>) -> Transition {
         self.step += 1;
+        std::thread::sleep(self.stall);
         if self.panic_in == PanicIn::Step && self.step == self.at_step {
             panic!("injected fault: step {} of env {}", self.step, self.index);
         }

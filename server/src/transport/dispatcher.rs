@@ -275,21 +275,20 @@ impl Dispatcher {
 
     fn serve_leases(&mut self) -> bool {
         let mut ready = Vec::new();
-        for (index, lease) in self.leases.iter().enumerate() {
+        for (index, lease) in self.leases.iter_mut().enumerate() {
             let Some(action) = lease.poll() else { continue };
             let header = *action.user_header();
             match check_header(&header, lease) {
                 Err(status) => lease.publish_status(header.seq, status, None, None),
-                Ok(op) => {
-                    if let Some(obs) = lease.loan() {
-                        ready.push(Ready {
-                            lease: index,
-                            op,
-                            action,
-                            obs,
-                        });
-                    }
-                }
+                Ok(op) => match lease.loan() {
+                    Some(obs) => ready.push(Ready {
+                        lease: index,
+                        op,
+                        action,
+                        obs,
+                    }),
+                    None => lease.hold(action),
+                },
             }
         }
         if ready.is_empty() {

@@ -24,6 +24,9 @@ pub(crate) struct Lease {
     pub env_steps: u64,
     pub last_activity: Instant,
     pub batch: EnvBatch,
+    /// An action received while no observation sample could be loaned (the client
+    /// still holds them all): kept and served on a later pass, never dropped.
+    held_action: Option<iceoryx2::sample::Sample<ipc::Service, [u8], ActionHeader>>,
     subscriber: Subscriber<ipc::Service, [u8], ActionHeader>,
     publisher: Publisher<ipc::Service, [u8], ObsHeader>,
     notifier: Notifier<ipc::Service>,
@@ -72,6 +75,7 @@ impl Lease {
             env_steps: 0,
             last_activity: Instant::now(),
             batch,
+            held_action: None,
             subscriber,
             publisher,
             notifier,
@@ -88,8 +92,11 @@ impl Lease {
         batch
     }
 
-    /// The next waiting action sample, if any.
-    pub fn poll(&self) -> Option<iceoryx2::sample::Sample<ipc::Service, [u8], ActionHeader>> {
+    /// The next waiting action sample, if any (a held one first).
+    pub fn poll(&mut self) -> Option<iceoryx2::sample::Sample<ipc::Service, [u8], ActionHeader>> {
+        if let Some(held) = self.held_action.take() {
+            return Some(held);
+        }
         match self.subscriber.receive() {
             Ok(sample) => sample,
             Err(e) => {
@@ -97,6 +104,14 @@ impl Lease {
                 None
             }
         }
+    }
+
+    /// Keep `action` for a later pass (no observation sample was free).
+    pub fn hold(&mut self, action: iceoryx2::sample::Sample<ipc::Service, [u8], ActionHeader>) {
+        if self.held_action.is_none() {
+            tracing::debug!(lease = self.id, "no free observation sample: action held");
+        }
+        self.held_action = Some(action);
     }
 
     /// Loan a zero-filled observation sample.
