@@ -241,3 +241,49 @@ fn recordings_stay_inside_the_recordings_root() {
     drop(server);
     std::fs::remove_dir_all(&root).unwrap();
 }
+
+#[test]
+fn one_client_cannot_take_the_whole_server() {
+    let server = TestServer::start_in(
+        "isolation-quota",
+        common::fresh_location(),
+        &[
+            "--max-leases",
+            "6",
+            "--max-leases-per-client",
+            "3",
+            "--max-envs-per-client",
+            "10",
+        ],
+    );
+    let greedy = server.connect();
+    let mut held: Vec<_> = (0..3)
+        .map(|_| attach_null(&greedy, 2, serde_json::json!({}), AutoresetMode::Disabled))
+        .collect();
+    let refusal = |result: Result<echogym_client::Lease, ControlCallError>| match result {
+        Err(ControlCallError::Refused { kind, message }) => {
+            assert_eq!(kind, echogym_protocol::ControlErrorKind::CapacityExceeded);
+            message
+        }
+        Err(other) => panic!("expected a capacity refusal, got {other}"),
+        Ok(_) => panic!("attach beyond the client's quota accepted"),
+    };
+    let null = |num_envs| AttachOptions {
+        env_id: "echogym/Null-v0".into(),
+        num_envs,
+        config: serde_json::Map::new(),
+        autoreset_mode: AutoresetMode::Disabled,
+    };
+    let message = refusal(greedy.attach(&null(1)));
+    assert!(message.contains("max_leases_per_client"), "{message}");
+    held.pop();
+    let message = refusal(greedy.attach(&null(7)));
+    assert!(message.contains("max_envs_per_client"), "{message}");
+    held.push(greedy.attach(&null(4)).expect("within the quota"));
+
+    // Another client still gets its share.
+    let polite = server.connect();
+    let mut lease = attach_null(&polite, 2, serde_json::json!({}), AutoresetMode::Disabled);
+    lease.reset(None, None).expect("reset");
+    drop((lease, held, polite, greedy));
+}

@@ -131,6 +131,12 @@ struct ServeArgs {
     /// Most envs at once.
     #[arg(long)]
     max_envs: Option<usize>,
+    /// Most leases one client process holds.
+    #[arg(long)]
+    max_leases_per_client: Option<usize>,
+    /// Most envs one client process holds.
+    #[arg(long)]
+    max_envs_per_client: Option<usize>,
     /// The folder every env's `record.dir` must lie in (default: the working directory).
     #[arg(long)]
     recordings_root: Option<PathBuf>,
@@ -172,6 +178,11 @@ impl ServeArgs {
         set(&mut config.housekeeping_ms, &self.housekeeping_ms);
         set(&mut config.max_leases, &self.max_leases);
         set(&mut config.max_envs, &self.max_envs);
+        set(
+            &mut config.max_leases_per_client,
+            &self.max_leases_per_client,
+        );
+        set(&mut config.max_envs_per_client, &self.max_envs_per_client);
         if let Some(root) = &self.recordings_root {
             config.recordings_root =
                 Some(std::path::absolute(root).unwrap_or_else(|_| root.clone()));

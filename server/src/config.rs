@@ -28,6 +28,11 @@ pub struct ServeConfig {
     pub max_leases: usize,
     /// Most envs held at once, over all leases. Default 65,536.
     pub max_envs: usize,
+    /// Most leases one client process holds at once. Default 64 (a quarter of
+    /// `max_leases`: one client cannot take the whole server).
+    pub max_leases_per_client: usize,
+    /// Most envs one client process holds at once. Default 16,384.
+    pub max_envs_per_client: usize,
     /// The folder every env's `record.dir` must lie in (relative ones are joined to it).
     /// Default: the server's working directory at start.
     pub recordings_root: Option<std::path::PathBuf>,
@@ -53,6 +58,8 @@ impl Default for ServeConfig {
             housekeeping_ms: 100,
             max_leases: 256,
             max_envs: 65_536,
+            max_leases_per_client: 64,
+            max_envs_per_client: 16_384,
             recordings_root: None,
             log: "info".to_owned(),
             ipc: IpcLocation::from_env(),
@@ -122,6 +129,12 @@ impl ServeConfig {
         if self.max_leases == 0 || self.max_envs == 0 {
             return Err(invalid("max_leases", "and max_envs must be positive"));
         }
+        if self.max_leases_per_client == 0 || self.max_envs_per_client == 0 {
+            return Err(invalid(
+                "max_leases_per_client",
+                "and max_envs_per_client must be positive",
+            ));
+        }
         if let Some(root) = &self.recordings_root
             && !root.is_absolute()
         {
@@ -158,6 +171,8 @@ impl ServeConfig {
             housekeeping: Duration::from_millis(self.housekeeping_ms),
             max_leases: self.max_leases,
             max_envs: self.max_envs,
+            max_leases_per_client: self.max_leases_per_client,
+            max_envs_per_client: self.max_envs_per_client,
             parent_pid: self.parent_pid,
         }
     }

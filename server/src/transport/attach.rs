@@ -79,6 +79,28 @@ impl Dispatcher {
                 ),
             ));
         }
+        let (client_leases, client_envs) = self.held_by(client_node);
+        if client_leases >= self.options.max_leases_per_client {
+            return Err(refusal(
+                ControlErrorKind::CapacityExceeded,
+                format!(
+                    "this client holds its maximum of {} leases (max_leases_per_client)",
+                    self.options.max_leases_per_client
+                ),
+            ));
+        }
+        let fits_client = client_envs
+            .checked_add(request.num_envs)
+            .is_some_and(|total| total <= self.options.max_envs_per_client);
+        if !fits_client {
+            return Err(refusal(
+                ControlErrorKind::CapacityExceeded,
+                format!(
+                    "{} more envs would exceed this client's max_envs_per_client of {} ({client_envs} held or being built)",
+                    request.num_envs, self.options.max_envs_per_client
+                ),
+            ));
+        }
         Ok(AttachPlan {
             request,
             client_node,
@@ -217,6 +239,16 @@ impl Dispatcher {
                 tracing::debug!(ticket = pending.ticket, dead, "cancelling a build");
             }
         }
+    }
+
+    /// Leases and envs `client` holds or is having built.
+    fn held_by(&self, client: u128) -> (usize, usize) {
+        let leases = self.leases.iter().filter(|l| l.client_node == client);
+        let pending = self.pending.iter().filter(|p| p.client_node == client);
+        let count = leases.clone().count() + pending.clone().count();
+        let envs = leases.map(|l| l.batch.len()).sum::<usize>()
+            + pending.map(|p| p.num_envs).sum::<usize>();
+        (count, envs)
     }
 
     /// Envs held by leases and being built.

@@ -59,6 +59,10 @@ pub struct DispatcherOptions {
     pub max_leases: usize,
     /// Most envs at once, over all leases.
     pub max_envs: usize,
+    /// Most leases one client holds.
+    pub max_leases_per_client: usize,
+    /// Most envs one client holds.
+    pub max_envs_per_client: usize,
     /// Stop when this process is no longer our parent (private servers).
     pub parent_pid: Option<u32>,
 }
