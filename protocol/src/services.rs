@@ -52,6 +52,20 @@ pub enum Access {
     OpenOrCreate,
 }
 
+/// Finish a service `builder` as `access` says. The three builder types share no trait,
+/// and each of their methods fails with its own error type, hence a macro.
+macro_rules! with_access {
+    ($builder:expr, $access:expr, $name:expr) => {
+        match $access {
+            Access::Create => $builder.create().map_err(|e| ServiceError::new($name, e)),
+            Access::Open => $builder.open().map_err(|e| ServiceError::new($name, e)),
+            Access::OpenOrCreate => $builder
+                .open_or_create()
+                .map_err(|e| ServiceError::new($name, e)),
+        }
+    };
+}
+
 fn service_name(name: &str) -> Result<ServiceName, ServiceError> {
     ServiceName::new(name).map_err(|e| ServiceError::new(name, e))
 }
@@ -78,13 +92,7 @@ pub fn lease_channel<S: Service, H: std::fmt::Debug + ZeroCopySend>(
         .history_size(0)
         .subscriber_max_buffer_size(2)
         .subscriber_max_borrowed_samples(2);
-    match access {
-        Access::Create => builder.create().map_err(|e| ServiceError::new(name, e)),
-        Access::Open => builder.open().map_err(|e| ServiceError::new(name, e)),
-        Access::OpenOrCreate => builder
-            .open_or_create()
-            .map_err(|e| ServiceError::new(name, e)),
-    }
+    with_access!(builder, access, name)
 }
 
 /// An event service with `notifiers` notifiers and one listener.
@@ -100,13 +108,7 @@ pub fn event_service<S: Service>(
         .max_notifiers(notifiers)
         .max_listeners(1)
         .max_nodes(notifiers + 1);
-    match access {
-        Access::Create => builder.create().map_err(|e| ServiceError::new(name, e)),
-        Access::Open => builder.open().map_err(|e| ServiceError::new(name, e)),
-        Access::OpenOrCreate => builder
-            .open_or_create()
-            .map_err(|e| ServiceError::new(name, e)),
-    }
+    with_access!(builder, access, name)
 }
 
 /// The control service: JSON requests from up to [`MAX_CLIENTS`] clients.
@@ -125,11 +127,5 @@ pub fn control_service<S: Service>(
         .max_nodes(MAX_CLIENTS + 1)
         .max_active_requests_per_client(2)
         .max_response_buffer_size(2);
-    match access {
-        Access::Create => builder.create().map_err(|e| ServiceError::new(name, e)),
-        Access::Open => builder.open().map_err(|e| ServiceError::new(name, e)),
-        Access::OpenOrCreate => builder
-            .open_or_create()
-            .map_err(|e| ServiceError::new(name, e)),
-    }
+    with_access!(builder, access, name)
 }
