@@ -38,4 +38,4 @@ mod writer;
 pub use dataset::{Dataset, DatasetMeta, FORMAT, RecordingEntry, Segment};
 pub use error::RecordingsError;
 pub use recording::{GAP_FACTOR, GAP_MIN_S, MIN_SAMPLES, RATE_RANGE_HZ, Recording};
-pub use writer::DatasetWriter;
+pub use writer::{DatasetWriter, QUEUED_RECORDINGS};
