@@ -1,7 +1,7 @@
 """Train stable-baselines3 PPO (the seed's stack) on an echogym vector env.
 
 The envs run in the echogym server; SB3 sees one ``VecEnv`` whose ``num_envs`` envs are
-stepped with one shared-memory exchange (:class:`echogym.train.sb3.SB3VecEnv`), wrapped
+stepped with one shared-memory exchange (:class:`echogym.sb3.SB3VecEnv`), wrapped
 in SB3's ``VecNormalize`` (observation and reward normalisation, as the seed used) and
 ``VecMonitor`` (episode returns and lengths). The seed's networks by default: [256, 128]
 for both actor and critic.
@@ -26,7 +26,7 @@ import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
-from echogym.train.sb3 import SB3VecEnv
+from echogym.sb3 import SB3VecEnv
 
 
 def evaluate(model: PPO, venv: VecNormalize, episodes: int) -> dict[str, float]:
