@@ -285,5 +285,15 @@ fn one_client_cannot_take_the_whole_server() {
     let polite = server.connect();
     let mut lease = attach_null(&polite, 2, serde_json::json!({}), AutoresetMode::Disabled);
     lease.reset(None, None).expect("reset");
+    // `status` names each lease's owner process.
+    let now = status(&polite);
+    assert_eq!(now.leases.len(), 4);
+    assert!(
+        now.leases
+            .iter()
+            .all(|l| l.client_pid == Some(std::process::id())),
+        "{:?}",
+        now.leases
+    );
     drop((lease, held, polite, greedy));
 }

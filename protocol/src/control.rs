@@ -103,6 +103,10 @@ pub struct LeaseStatus {
     /// Seconds since the last exchange (or since attach, before the first).
     #[serde(default)]
     pub idle_s: f64,
+    /// The owning client's process id, from its iceoryx2 node name (`None` for a
+    /// client that is not echogym's, or whose node is gone).
+    #[serde(default)]
+    pub client_pid: Option<u32>,
 }
 
 /// An attach whose envs are being built, as shown by `echogym status`.

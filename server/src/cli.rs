@@ -357,7 +357,7 @@ fn status(target: &Target, json: bool) -> Result<(), String> {
     }
     for lease in &status.leases {
         println!(
-            "  lease {:>20}  {:<28} x{:<5} {:>10} exchanges {:>12} env steps  age {:>8.1} s  idle {:>7.1} s  {}",
+            "  lease {:>20}  {:<28} x{:<5} {:>10} exchanges {:>12} env steps  age {:>8.1} s  idle {:>7.1} s  pid {:<8} {}",
             lease.lease_id,
             lease.env_id,
             lease.num_envs,
@@ -365,6 +365,7 @@ fn status(target: &Target, json: bool) -> Result<(), String> {
             lease.env_steps,
             lease.age_s,
             lease.idle_s,
+            lease.client_pid.map_or("?".to_owned(), |p| p.to_string()),
             lease.client_label
         );
     }

@@ -52,6 +52,7 @@ impl Dispatcher {
     }
 
     fn status(&self) -> ServerStatus {
+        let pids = self.client_pids();
         ServerStatus {
             name: self.options.name.clone(),
             pid: std::process::id(),
@@ -73,6 +74,7 @@ impl Dispatcher {
                     age_s: l.created.elapsed().as_secs_f64(),
                     env_steps: l.env_steps,
                     idle_s: l.last_activity.elapsed().as_secs_f64(),
+                    client_pid: pids.get(&l.client_node).copied(),
                 })
                 .collect(),
             building: self
@@ -86,5 +88,26 @@ impl Dispatcher {
                 })
                 .collect(),
         }
+    }
+
+    /// Process ids of the live echogym client nodes (`echogym-client-<pid>`), by node id.
+    fn client_pids(&self) -> std::collections::HashMap<u128, u32> {
+        use iceoryx2::node::NodeView;
+        use iceoryx2::prelude::*;
+        let mut pids = std::collections::HashMap::new();
+        let _ = Node::<ipc::Service>::list(&self.iox_config, |state| {
+            if let NodeState::Alive(view) = &state
+                && let Some(details) = view.details()
+                && let Some(pid) = details
+                    .name()
+                    .to_string()
+                    .strip_prefix("echogym-client-")
+                    .and_then(|p| p.parse().ok())
+            {
+                pids.insert(view.id().value(), pid);
+            }
+            CallbackProgression::Continue
+        });
+        pids
     }
 }
