@@ -29,7 +29,7 @@ import numpy as np
 
 import echogym
 from echogym._progress import progress_bar
-from echogym.apps.plotting import pyplot
+from echogym.apps.plotting import plots_available, pyplot
 from echogym.apps.sweep_policy import scripted_action
 from echogym.gym_vector import EchoVectorEnv
 
@@ -170,10 +170,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--server", default=None,
                         help="server name (default $ECHOGYM_SERVER or 'default'; started if absent)")
     args = parser.parse_args(argv)
-    try:
-        pyplot()
-    except ImportError as exc:
-        print(f"echogym demo: {exc}", file=sys.stderr)
+    if not plots_available("demo"):
         return 2
 
     print(f"echogym {echogym.__version__}: {ENV_ID} x {args.num_envs}, {args.robot}, "

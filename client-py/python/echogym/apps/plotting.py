@@ -3,6 +3,7 @@ the ``[plots]`` extra is not installed."""
 
 from __future__ import annotations
 
+import sys
 from types import ModuleType
 
 #: What to install for the figures.
@@ -23,3 +24,14 @@ def pyplot() -> ModuleType:
     import matplotlib.pyplot as plt
 
     return plt
+
+
+def plots_available(app: str) -> bool:
+    """Whether matplotlib can be loaded; if not, say so on stderr as ``echogym APP: ...``
+    (an application checks before it runs, not after minutes of work)."""
+    try:
+        pyplot()
+    except ImportError as exc:
+        print(f"echogym {app}: {exc}", file=sys.stderr)
+        return False
+    return True

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 import echogym
-from echogym.apps.plotting import pyplot
+from echogym.apps.plotting import plots_available, pyplot
 from echogym.apps.sweep_policy import scripted_action
 from echogym.gym_vector import EchoVectorEnv
 
@@ -158,10 +158,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--server", default=None,
                         help="server name (default $ECHOGYM_SERVER or 'default'; started if absent)")
     args = parser.parse_args(argv)
-    try:
-        pyplot()
-    except ImportError as exc:
-        print(f"echogym ultrasound: {exc}", file=sys.stderr)
+    if not plots_available("ultrasound"):
         return 2
     ultrasound = json.loads(args.config)
     client = echogym.connect(args.server, autostart=True)
