@@ -48,11 +48,7 @@ def plot_report(out: str | Path) -> list[Path]:
     axes[4].invert_yaxis()
     fig.suptitle(f"Where the baseline misses (held-out RMSE {report['baseline']['rmse_heldout_n']:.3f} N, "
                  f"noise ≈ {report['noise_floor_n']:.3f} N)", fontsize=10)
-    fig.tight_layout()
-    path = out / "residual_map.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    written.append(path)
+    written.append(_save(plt, fig, out / "residual_map.png"))
 
     held = report["split"]["heldout"]
     fig, axes = plt.subplots(len(held), 1, figsize=(10, 2.4 * len(held)), squeeze=False)
@@ -70,11 +66,7 @@ def plot_report(out: str | Path) -> list[Path]:
     imp = report["improvement"]
     fig.suptitle(f"Held-out recordings: RMSE {imp['heldout_rmse_before_n']:.3f} → "
                  f"{imp['heldout_rmse_after_n']:.3f} N (effects added: {names})", fontsize=10)
-    fig.tight_layout()
-    path = out / "heldout_before_after.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    written.append(path)
+    written.append(_save(plt, fig, out / "heldout_before_after.png"))
 
     points = load_thesis_method(out)
     fig, ax = plt.subplots(figsize=(7, 4.5))
@@ -90,9 +82,13 @@ def plot_report(out: str | Path) -> list[Path]:
     ax.set_ylabel("F / r [N/m]")
     ax.set_title("The thesis's method: F/r regressed on v/r per site", fontsize=10)
     ax.legend(fontsize=7)
+    written.append(_save(plt, fig, out / "seed_regression.png"))
+    return written
+
+
+def _save(plt, fig, path: Path) -> Path:
+    """Lay out, write at 110 dpi and close `fig`; the path written."""
     fig.tight_layout()
-    path = out / "seed_regression.png"
     fig.savefig(path, dpi=110)
     plt.close(fig)
-    written.append(path)
-    return written
+    return path
