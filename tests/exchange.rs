@@ -156,7 +156,10 @@ fn bad_inputs_get_typed_errors_and_lose_nothing() {
         refused_kind(connection.request_with_version(999, &ControlRequest::Status));
     assert_eq!(kind, ControlErrorKind::VersionMismatch);
     assert!(message.contains("999"), "{message}");
-    let (kind, _) = refused_kind(connection.request(&ControlRequest::Detach { lease_id: 12345 }));
+    let (kind, _) = refused_kind(connection.request(&ControlRequest::Detach {
+        lease_id: 12345,
+        client_node_id: connection.node_id().to_string(),
+    }));
     assert_eq!(kind, ControlErrorKind::UnknownLease);
     let bad_node = ControlRequest::Attach(AttachRequest {
         env_id: "echogym/Null-v0".into(),

@@ -1,5 +1,6 @@
-//! One client cannot stall the others: envs are built off the dispatcher, and a build
-//! nobody waits for any more is cancelled. Real server process, real clients.
+//! One client cannot stall, starve or disturb the others: envs are built off the
+//! dispatcher, a build nobody waits for any more is cancelled, quotas hold per client,
+//! and a lease is detached only by its own client. Real server process, real clients.
 
 mod common;
 
@@ -296,4 +297,34 @@ fn one_client_cannot_take_the_whole_server() {
         now.leases
     );
     drop((lease, held, polite, greedy));
+}
+
+#[test]
+fn only_the_attaching_client_can_detach_a_lease() {
+    let server = TestServer::start_in("isolation-owner", common::fresh_location(), &[]);
+    let owner = server.connect();
+    let mut lease = attach_null(&owner, 2, serde_json::json!({}), AutoresetMode::Disabled);
+    lease.reset(None, None).expect("reset");
+    let lease_id = status(&owner).leases[0].lease_id;
+
+    // Another client (same user) naming the lease, with its own node id or none.
+    let intruder = server.connect();
+    for node in [intruder.node_id().to_string(), String::new()] {
+        let request = ControlRequest::Detach {
+            lease_id,
+            client_node_id: node,
+        };
+        match intruder.request(&request) {
+            Err(ControlCallError::Refused { kind, message }) => {
+                assert_eq!(kind, echogym_protocol::ControlErrorKind::NotOwner);
+                assert!(message.contains(&lease_id.to_string()), "{message}");
+            }
+            other => panic!("a stranger's detach was not refused: {other:?}"),
+        }
+    }
+    // The owner's lease is untouched and still steps; its own detach works.
+    lease.reset(None, None).expect("the lease survived");
+    assert_eq!(status(&owner).leases.len(), 1);
+    lease.close();
+    assert!(status(&owner).leases.is_empty());
 }

@@ -134,6 +134,7 @@ pub(crate) fn control_error(e: ControlCallError) -> PyErr {
             ControlErrorKind::InvalidRequest => pyo3::exceptions::PyValueError::new_err(message),
             ControlErrorKind::CapacityExceeded => CapacityError::new_err(message),
             ControlErrorKind::UnknownLease => LeaseLostError::new_err(message),
+            ControlErrorKind::NotOwner => pyo3::exceptions::PyPermissionError::new_err(message),
             ControlErrorKind::ShuttingDown => ServerStoppedError::new_err(message),
             ControlErrorKind::Internal => TransportError::new_err(message),
         },

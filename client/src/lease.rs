@@ -68,7 +68,10 @@ impl Connection {
         match Lease::open(self.clone(), reply) {
             Ok(lease) => Ok(lease),
             Err(e) => {
-                let _ = self.request(&ControlRequest::Detach { lease_id });
+                let _ = self.request(&ControlRequest::Detach {
+                    lease_id,
+                    client_node_id: self.node_id().to_string(),
+                });
                 Err(e)
             }
         }
@@ -353,6 +356,7 @@ impl Lease {
         self.current = None;
         let request = ControlRequest::Detach {
             lease_id: self.reply.lease_id,
+            client_node_id: self.connection.node_id().to_string(),
         };
         match self
             .connection

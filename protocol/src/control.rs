@@ -19,6 +19,10 @@ pub enum ControlRequest {
     Detach {
         /// The lease.
         lease_id: u64,
+        /// The asking client's iceoryx2 node id: only the node that attached a lease may
+        /// detach it (empty from an old client: refused as not the owner).
+        #[serde(default)]
+        client_node_id: String,
     },
     /// Resolve an env's spec for a config without leasing anything.
     Spec {
@@ -164,6 +168,8 @@ pub enum ControlErrorKind {
     CapacityExceeded,
     /// No such lease (already detached or reclaimed).
     UnknownLease,
+    /// The lease belongs to another client.
+    NotOwner,
     /// The server is shutting down.
     ShuttingDown,
     /// The server failed to create shared-memory resources.

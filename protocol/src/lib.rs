@@ -25,7 +25,9 @@ pub use control::{
     AttachReply, AttachRequest, BuildStatus, ControlError, ControlErrorKind, ControlReply,
     ControlRequest, EnvInfo, LeaseStatus, ServerStatus,
 };
-pub use ipc_location::{DEFAULT_PREFIX, IpcLocation, IpcLocationError, PREFIX_ENV, ROOT_ENV};
+pub use ipc_location::{
+    DEFAULT_PREFIX, IpcLocation, IpcLocationError, PREFIX_ENV, ROOT_ENV, default_prefix,
+};
 pub use layout::{
     ActionLayout, BatchLayout, FieldView, LayoutError, ObsLayout, PAYLOAD_ALIGN, contiguous_strides,
 };

@@ -100,7 +100,7 @@ struct Target {
     /// Server name.
     #[arg(long, default_value = "default", env = "ECHOGYM_SERVER")]
     name: String,
-    /// iceoryx2 file prefix (default `echogym_`).
+    /// iceoryx2 file prefix (default `echogym_<uid>_`).
     #[arg(long, env = "ECHOGYM_IPC_PREFIX")]
     ipc_prefix: Option<String>,
     /// iceoryx2 root directory (default `/tmp/echogym-<uid>/`).

@@ -38,7 +38,7 @@ pub struct ServeConfig {
     pub recordings_root: Option<std::path::PathBuf>,
     /// Log filter (`tracing` env-filter syntax). Default `"info"`.
     pub log: String,
-    /// Where iceoryx2 resources live. Default prefix `echogym_`, root
+    /// Where iceoryx2 resources live. Default prefix `echogym_<uid>_`, root
     /// `/tmp/echogym-<uid>/`; `ECHOGYM_IPC_PREFIX` / `ECHOGYM_IPC_ROOT` override both.
     pub ipc: IpcLocation,
     /// Stop when this pid is no longer the parent (set for private auto-started servers).

@@ -16,7 +16,10 @@ impl Dispatcher {
                 ControlErrorKind::Internal,
                 "attach is answered by the attach stage",
             ),
-            ControlRequest::Detach { lease_id } => self.detach(lease_id),
+            ControlRequest::Detach {
+                lease_id,
+                client_node_id,
+            } => self.detach(lease_id, &client_node_id),
             ControlRequest::Spec { env_id, config } => match self.registry.get(&env_id) {
                 Err(e) => error(ControlErrorKind::UnknownEnv, e.to_string()),
                 Ok(factory) => match factory.spec(&config) {
@@ -36,8 +39,23 @@ impl Dispatcher {
         }
     }
 
-    fn detach(&mut self, lease_id: u64) -> ControlReply {
+    /// Detach `lease_id` if `client_node_id` (decimal) attached it: a same-user process
+    /// cannot take another client's envs away.
+    fn detach(&mut self, lease_id: u64, client_node_id: &str) -> ControlReply {
         match self.leases.iter().position(|l| l.id == lease_id) {
+            Some(index)
+                if client_node_id.parse::<u128>().ok() != Some(self.leases[index].client_node) =>
+            {
+                let owner = &self.leases[index];
+                tracing::warn!(lease = lease_id, owner = %owner.client_label, "detach refused: not the lease's client");
+                error(
+                    ControlErrorKind::NotOwner,
+                    format!(
+                        "lease {lease_id} belongs to another client ({}); only the client that attached it can detach it",
+                        owner.client_label
+                    ),
+                )
+            }
             Some(index) => {
                 let lease = self.leases.remove(index);
                 tracing::info!(lease = lease_id, client = %lease.client_label, "lease detached");

@@ -116,6 +116,7 @@ impl Dispatcher {
     ) -> Result<Self, StartError> {
         let names = ServiceNames::new(&options.name)?;
         let iox_config = options.location.iceoryx_config()?;
+        options.location.check_root()?;
         echogym_protocol::quiet_iceoryx_logs();
         let node_name = format!("echogym-serve-{}-{}", options.name, std::process::id());
         let node = NodeBuilder::new()
