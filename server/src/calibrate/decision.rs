@@ -22,6 +22,21 @@ pub struct Accepted {
     /// The baseline's readjustment fitted with its signature.
     #[serde(skip)]
     pub readjust: effects::Readjust,
+    /// Effects that, modelled in the simulator instead of this one, explained the
+    /// validation recordings nearly as well: the data cannot tell them apart.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub indistinguishable_from: Vec<Alternative>,
+}
+
+/// An effect the data could not tell apart from an accepted one.
+#[derive(Debug, Clone, Serialize)]
+pub struct Alternative {
+    /// Catalogue name.
+    pub name: &'static str,
+    /// Validation RMSE of the simulator with it instead \[N\].
+    pub validation_rmse_n: f64,
+    /// Validation RMSE of the simulator with the accepted effect \[N\].
+    pub accepted_rmse_n: f64,
 }
 
 /// A candidate not accepted.

@@ -9,7 +9,7 @@ use super::decision::Accepted;
 use super::effects;
 use super::fit::{Bound, Convergence, levenberg_marquardt_blocks};
 use super::geometry::{PATH_PRIOR, PRIOR_FORCE_N, Source};
-use super::replay::{Model, Setup, replay_all};
+use super::replay::{Model, ReplayCache, Setup};
 
 /// Time constants a relaxation branch may take \[s\] (the signature's grid spans the same).
 pub const RELAXATION_TAU_S: [f64; 2] = [0.1, 30.0];
@@ -270,10 +270,13 @@ pub fn fit_model(
     let lateral = effects
         .iter()
         .any(|name| effects::named(name).is_some_and(|e| e.channel() == effects::Channel::Lateral));
+    // Candidates that move only sensor parameters reuse the body replays of the point
+    // the Jacobian is taken at (its base evaluation, then one column per parameter).
+    let cache = ReplayCache::new((packed.names.len() + 2) * fit_on.len());
     let residuals = |x: &[f64], blocks: &[usize]| -> Vec<Vec<f64>> {
         let candidate = unpack(&model, &packed.names, &packed.log, x);
         let indices: Vec<usize> = blocks.iter().map(|&b| fit_on[b]).collect();
-        let predictions = replay_all(setup, &candidate, &dataset.recordings, &indices);
+        let predictions = cache.replay_all(setup, &candidate, &dataset.recordings, &indices);
         blocks
             .iter()
             .zip(&predictions)

@@ -125,6 +125,18 @@ impl Model {
         }
     }
 
+    /// The model with its sensor parameters cleared: equal keys, equal body replays.
+    pub fn body_key(&self) -> Self {
+        Self {
+            bias: 0.0,
+            delay: 0.0,
+            filter_cutoff_hz: 0.0,
+            bias_drift_n: 0.0,
+            lateral_share: [0.0; 2],
+            ..self.clone()
+        }
+    }
+
     /// The surface under `site`, if the model has one.
     pub fn surface_at(&self, site: &str) -> Option<&SiteSurface> {
         self.surface.iter().find(|s| s.site == site)
@@ -223,14 +235,34 @@ fn interp(t_axis: &[f64], values: &[f64], t: f64) -> f64 {
 
 /// Replay recording `index` under `model`.
 pub fn replay(setup: &Setup, model: &Model, recording: &Recording, index: usize) -> Prediction {
+    sense(setup, model, recording, index, &body(setup, model, recording, index))
+}
+
+/// The body's force on the probe on the replay's 2 ms grid, before the sensor chain:
+/// everything of a replay that the sensor parameters (bias, drift, delay, low-pass,
+/// tilt) do not change, so a fit moving only those reuses it (see [`ReplayCache`]).
+#[derive(Debug, Clone)]
+pub struct BodyReplay {
+    t: Vec<f64>,
+    f: Vec<f64>,
+    fx: Vec<f64>,
+    fy: Vec<f64>,
+    contact: Vec<bool>,
+    /// The torso could not be built from the model (an out-of-range candidate).
+    invalid: bool,
+}
+
+/// The body part of a replay (see [`BodyReplay`]).
+pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -> BodyReplay {
     let params = setup.torso_params(model);
     let Ok(mut torso) = Torso::new(params.clone(), ProbeFace::default()) else {
-        // Out-of-range candidates predict nothing (the fit sees a large error).
-        return Prediction {
-            fz: vec![0.0; recording.len()],
-            fxy: vec![[0.0; 2]; recording.len()],
-            contact: vec![false; recording.len()],
-            depth: vec![0.0; recording.len()],
+        return BodyReplay {
+            t: Vec::new(),
+            f: Vec::new(),
+            fx: Vec::new(),
+            fy: Vec::new(),
+            contact: Vec::new(),
+            invalid: true,
         };
     };
     let breathing = model.breathing.is_some();
@@ -309,7 +341,45 @@ pub fn replay(setup: &Setup, model: &Model, recording: &Recording, index: usize)
         sim_f.push(f[2]);
         sim_contact.push(contact);
     }
-    // The sensor chain: body force → low-pass → delay (the two commute) → bias.
+    BodyReplay {
+        t: sim_t,
+        f: sim_f,
+        fx: sim_fx,
+        fy: sim_fy,
+        contact: sim_contact,
+        invalid: false,
+    }
+}
+
+/// The sensor chain on a body replay, sampled on the recording's time base: body force
+/// → low-pass → delay (the two commute) → bias and drift; tilt into fx, fy.
+pub fn sense(
+    setup: &Setup,
+    model: &Model,
+    recording: &Recording,
+    index: usize,
+    body: &BodyReplay,
+) -> Prediction {
+    if body.invalid {
+        // Out-of-range candidates predict nothing (the fit sees a large error).
+        return Prediction {
+            fz: vec![0.0; recording.len()],
+            fxy: vec![[0.0; 2]; recording.len()],
+            contact: vec![false; recording.len()],
+            depth: vec![0.0; recording.len()],
+        };
+    }
+    let (mut sim_f, mut sim_fx, mut sim_fy) = (body.f.clone(), body.fx.clone(), body.fy.clone());
+    let (sim_t, sim_contact) = (&body.t, &body.contact);
+    let steps = sim_t.len();
+    let t0 = recording.t[0];
+    let top = setup.torso_params(model).top_z();
+    let site_surface = setup
+        .recording_sites
+        .get(index)
+        .and_then(|site| model.surface_at(site));
+    let path = model.paths.iter().find(|p| p.recording == index);
+    let surface = |xy: [f64; 2], v: [f64; 3]| geometry::shift(site_surface, path, xy, v);
     if model.filter_cutoff_hz > 0.0 {
         let alpha = low_pass_alpha(model.filter_cutoff_hz, REPLAY_DT);
         for series in [&mut sim_f, &mut sim_fx, &mut sim_fy] {
@@ -322,13 +392,13 @@ pub fn replay(setup: &Setup, model: &Model, recording: &Recording, index: usize)
     }
     let mut out = Prediction::default();
     for (i, &t) in recording.t.iter().enumerate() {
-        let f = interp(&sim_t, &sim_f, t - model.delay);
+        let f = interp(sim_t, &sim_f, t - model.delay);
         let drift = model.bias_drift_n * setup.session.share(index, t);
         out.fz.push(f + model.bias + drift);
         let [sx, sy] = model.lateral_share;
         out.fxy.push([
-            interp(&sim_t, &sim_fx, t - model.delay) + sx * f,
-            interp(&sim_t, &sim_fy, t - model.delay) + sy * f,
+            interp(sim_t, &sim_fx, t - model.delay) + sx * f,
+            interp(sim_t, &sim_fy, t - model.delay) + sy * f,
         ]);
         let k = (((t - t0) / REPLAY_DT).round() as usize).min(steps - 1);
         out.contact.push(sim_contact[k]);
@@ -336,6 +406,72 @@ pub fn replay(setup: &Setup, model: &Model, recording: &Recording, index: usize)
         out.depth.push(top + z - recording.p[i][2]);
     }
     out
+}
+
+/// Body replays of recent models, by recording, so a fit whose candidates differ only in
+/// the sensor parameters (finite-difference columns of a delay, a bias, a filter)
+/// replays the body once. Bounded: the oldest entries go first.
+pub struct ReplayCache {
+    entries: std::sync::Mutex<std::collections::VecDeque<CacheEntry>>,
+    capacity: usize,
+}
+
+struct CacheEntry {
+    index: usize,
+    key: Model,
+    body: std::sync::Arc<BodyReplay>,
+}
+
+impl ReplayCache {
+    /// A cache of at most `capacity` body replays.
+    pub fn new(capacity: usize) -> Self {
+        Self {
+            entries: std::sync::Mutex::new(std::collections::VecDeque::new()),
+            capacity,
+        }
+    }
+
+    fn get(&self, index: usize, key: &Model) -> Option<std::sync::Arc<BodyReplay>> {
+        let entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
+        entries
+            .iter()
+            .find(|e| e.index == index && e.key == *key)
+            .map(|e| e.body.clone())
+    }
+
+    fn put(&self, index: usize, key: Model, body: std::sync::Arc<BodyReplay>) {
+        let mut entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
+        if entries.len() >= self.capacity {
+            entries.pop_front();
+        }
+        entries.push_back(CacheEntry { index, key, body });
+    }
+
+    /// [`replay_all`], reusing the body replay of a model that differs from `model`
+    /// only in its sensor parameters.
+    pub fn replay_all(
+        &self,
+        setup: &Setup,
+        model: &Model,
+        recordings: &[Recording],
+        indices: &[usize],
+    ) -> Vec<Prediction> {
+        let key = model.body_key();
+        indices
+            .par_iter()
+            .map(|&i| {
+                let body = match self.get(i, &key) {
+                    Some(body) => body,
+                    None => {
+                        let body = std::sync::Arc::new(body(setup, model, &recordings[i], i));
+                        self.put(i, key.clone(), body.clone());
+                        body
+                    }
+                };
+                sense(setup, model, &recordings[i], i, &body)
+            })
+            .collect()
+    }
 }
 
 /// Replay every recording in `indices` (in parallel).

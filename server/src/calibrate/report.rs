@@ -167,6 +167,7 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
                 "signature_params": a.params,
                 "evidence": a.evidence,
                 "validation_rmse_n": a.heldout_rmse_n,
+                "indistinguishable_from": a.indistinguishable_from,
             })
         })
         .collect();
@@ -449,6 +450,13 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
             effect_sentence(o, a.name, site_stiffness),
             a.evidence
         );
+        for alt in &a.indistinguishable_from {
+            let _ = writeln!(
+                s,
+                "  - **Not told apart from `{}`**: modelled in the simulator instead, it explains the validation recordings nearly as well (RMSE {:.3} N against {:.3} N). These recordings cannot separate the two; the name above is the better fit, not a finding (see docs/calibration.md, \"What the tool cannot tell apart\").",
+                alt.name, alt.validation_rmse_n, alt.accepted_rmse_n
+            );
+        }
     }
     if !o.calibrated_fit.estimates.is_empty() && !o.accepted.is_empty() {
         let _ = writeln!(s, "\n| parameter | value | 95 % interval |\n|---|---:|---|");
