@@ -328,3 +328,34 @@ fn only_the_attaching_client_can_detach_a_lease() {
     lease.close();
     assert!(status(&owner).leases.is_empty());
 }
+
+#[test]
+fn an_oversized_control_request_is_refused_unparsed() {
+    let server = TestServer::start_in("isolation-big-request", common::fresh_location(), &[]);
+    let connection = server.connect();
+    let mut config = serde_json::Map::new();
+    config.insert("pad".into(), serde_json::Value::String("x".repeat(2 << 20)));
+    let request = ControlRequest::Attach(echogym_protocol::AttachRequest {
+        env_id: "echogym/Null-v0".into(),
+        num_envs: 1,
+        config,
+        autoreset_mode: AutoresetMode::Disabled,
+        client_node_id: connection.node_id().to_string(),
+        client_label: String::new(),
+    });
+    match connection.request(&request) {
+        Err(ControlCallError::Refused { kind, message }) => {
+            assert_eq!(kind, echogym_protocol::ControlErrorKind::InvalidRequest);
+            assert!(message.contains("bytes refused"), "{message}");
+        }
+        other => panic!("a 2 MiB request was not refused: {other:?}"),
+    }
+    // The server serves on.
+    let mut lease = attach_null(
+        &connection,
+        1,
+        serde_json::json!({}),
+        AutoresetMode::Disabled,
+    );
+    lease.reset(None, None).expect("reset");
+}

@@ -235,7 +235,13 @@ fn interp(t_axis: &[f64], values: &[f64], t: f64) -> f64 {
 
 /// Replay recording `index` under `model`.
 pub fn replay(setup: &Setup, model: &Model, recording: &Recording, index: usize) -> Prediction {
-    sense(setup, model, recording, index, &body(setup, model, recording, index))
+    sense(
+        setup,
+        model,
+        recording,
+        index,
+        &body(setup, model, recording, index),
+    )
 }
 
 /// The body's force on the probe on the replay's 2 ms grid, before the sensor chain:

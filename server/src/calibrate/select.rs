@@ -210,11 +210,14 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                 100.0 * other.gain()
             );
             if other.gain() > 0.0 && other.gain() >= INDISTINGUISHABLE * trial.gain() {
-                trial.effect.indistinguishable_from.push(decision::Alternative {
-                    name: other.effect.name,
-                    validation_rmse_n: other.after,
-                    accepted_rmse_n: trial.after,
-                });
+                trial
+                    .effect
+                    .indistinguishable_from
+                    .push(decision::Alternative {
+                        name: other.effect.name,
+                        validation_rmse_n: other.after,
+                        accepted_rmse_n: trial.after,
+                    });
             }
         }
         let (before, after) = (trial.before, trial.after);

@@ -51,6 +51,11 @@ pub(super) fn respond(request: &ControlRequestHandle, reply: &ControlReply) {
     }
 }
 
+/// Largest control request the server parses \[bytes\]. Requests are a few hundred bytes
+/// (a config of a few keys); the client's request segment grows on demand, so without a
+/// cap one client could make the dispatcher parse gigabytes while everyone waits.
+pub(super) const MAX_CONTROL_REQUEST_BYTES: usize = 1 << 20;
+
 /// Parse one control request (header already received, payload is JSON).
 pub(super) fn parse_control(
     header: ControlHeader,
@@ -66,6 +71,14 @@ pub(super) fn parse_control(
         ));
     }
     let len = (header.payload_len as usize).min(payload.len());
+    if len > MAX_CONTROL_REQUEST_BYTES {
+        return Err(refusal(
+            ControlErrorKind::InvalidRequest,
+            format!(
+                "control request of {len} bytes refused: at most {MAX_CONTROL_REQUEST_BYTES} (a config is a few keys)"
+            ),
+        ));
+    }
     serde_json::from_slice(&payload[..len]).map_err(|e| {
         refusal(
             ControlErrorKind::InvalidRequest,

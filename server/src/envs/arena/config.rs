@@ -13,6 +13,12 @@ use crate::sim::ft_sensor::FtSensorParams;
 use crate::sim::probe::ProbeParams;
 use crate::sim::robot::RobotConfig;
 use crate::sim::scene::SceneParams;
+
+/// Most cameras one env may render.
+pub const MAX_CAMERAS: usize = 8;
+/// Most pixels one env's cameras may render per step, over all of them (four 1024²
+/// views): a bound on what one env's config can make the server allocate and cast.
+pub const MAX_CAMERA_PIXELS: usize = 4 * 1024 * 1024;
 use crate::sim::torso::{BreathingParams, TorsoParams};
 use crate::sim::ultrasound::UltrasoundConfig;
 
@@ -148,6 +154,24 @@ impl<T: TaskConfig> ArenaConfig<T> {
             }
         }
         self.randomization.validate(id)?;
+        if self.cameras.len() > MAX_CAMERAS {
+            return Err(wrap(
+                "cameras",
+                format!(
+                    "at most {MAX_CAMERAS} cameras per env ({} given)",
+                    self.cameras.len()
+                ),
+            ));
+        }
+        let pixels: usize = self.cameras.iter().map(|c| c.width * c.height).sum();
+        if pixels > MAX_CAMERA_PIXELS {
+            return Err(wrap(
+                "cameras",
+                format!(
+                    "at most {MAX_CAMERA_PIXELS} pixels per env over all cameras ({pixels} given): fewer or smaller cameras"
+                ),
+            ));
+        }
         let mut names = std::collections::HashSet::new();
         for cam in &self.cameras {
             cam.validate(id)?;

@@ -141,7 +141,32 @@ pub struct TorsoParamError {
     pub got: f64,
 }
 
+/// Most particles one torso may have: ≈ 70× the default torso's 717, a bound on what one
+/// env's config can make the server allocate and step (the implicit solve scales with it).
+pub const MAX_PARTICLES: usize = 50_000;
+
 impl TorsoParams {
+    /// Particles [`super::layout::ShellLayout`] lays out for this size and spacing (a top
+    /// grid and side rings), counted without building it.
+    pub fn particle_count(&self) -> usize {
+        let cells = |len: f64| {
+            let c = (len / self.spacing).round();
+            if c.is_finite() && c < 1e9 {
+                (c as usize).max(2)
+            } else {
+                usize::MAX / 4
+            }
+        };
+        let (cx, cy, cz) = (
+            cells(self.size[0]),
+            cells(self.size[1]),
+            cells(self.size[2]),
+        );
+        let top = (cx + 1).saturating_mul(cy + 1);
+        let ring = 2usize.saturating_mul(cx.saturating_add(cy));
+        top.saturating_add((cz - 1).saturating_mul(ring))
+    }
+
     /// Check ranges (positive sizes, sane resolution, non-negative material values).
     pub fn validate(&self) -> Result<(), TorsoParamError> {
         let check = |key, ok: bool, expected, got| {
@@ -166,6 +191,14 @@ impl TorsoParams {
             "between 4 mm and half the smallest size",
             self.spacing,
         )?;
+        let particles = self.particle_count();
+        if particles > MAX_PARTICLES {
+            return Err(TorsoParamError {
+                key: "spacing",
+                expected: "coarse enough for at most 50,000 particles (size / spacing per axis)",
+                got: self.spacing,
+            });
+        }
         check(
             "stiffness",
             self.stiffness > 0.0 && self.stiffness.is_finite(),
