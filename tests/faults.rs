@@ -167,3 +167,55 @@ fn a_step_past_its_deadline_ends_in_a_typed_error() {
     bystander_steps(&mut bystander, 0.5);
     drop((lease, bystander, other, impatient));
 }
+
+#[test]
+fn a_non_finite_step_is_truncated_flagged_and_counted() {
+    let server = TestServer::start_in("faults-nan", fresh_location(), &["--fault-injection"]);
+    let connection = server.connect();
+    // Two envs; the second (index 1 over the server's life) blows up at step 3.
+    let mut lease = faulty(
+        &connection,
+        2,
+        serde_json::json!({"env_index": 1, "nan_at_step": 3}),
+    )
+    .expect("attach");
+    assert_eq!(lease.spec().info_keys, vec!["physics_error".to_owned()]);
+    lease.reset(None, None).expect("reset");
+    for step in 1..=3u64 {
+        let payload = lease.step(&[0.0, 0.0], None).expect("step").to_vec();
+        let layout = lease.layout().clone();
+        for env in 0..2 {
+            let obs = common::null_obs(&lease, &payload, env);
+            assert!(
+                obs.iter().all(|v| v.is_finite()),
+                "NaN reached the client: {obs:?}"
+            );
+            let truncated = payload[layout.obs.truncated + env] != 0;
+            let info: &[f32] = bytemuck::cast_slice(
+                &payload[layout.obs.info + env * 4..layout.obs.info + env * 4 + 4],
+            );
+            let blew_up = env == 1 && step == 3;
+            assert_eq!(truncated, blew_up, "env {env} step {step}");
+            assert_eq!(
+                info[0],
+                if blew_up { 1.0 } else { 0.0 },
+                "env {env} step {step}"
+            );
+            if blew_up {
+                // The other observation values are kept; only the NaN is zeroed.
+                assert_eq!(obs, vec![0.0, 1.0]);
+            }
+        }
+    }
+    // The blown-up env must be reset before it steps again; the other is untouched.
+    match lease.step(&[0.0, 0.0], None) {
+        Err(LeaseError::NeedsReset { env }) => assert_eq!(env, 1),
+        other => panic!("expected NeedsReset for env 1, got {other:?}"),
+    }
+    let status = match connection.request(&ControlRequest::Status).expect("status") {
+        ControlReply::Status(status) => status,
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(status.physics_errors, 1);
+    assert_eq!(status.leases[0].physics_errors, 1);
+}

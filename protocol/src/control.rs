@@ -104,6 +104,9 @@ pub struct LeaseStatus {
     /// Env steps served (summed over the batch).
     #[serde(default)]
     pub env_steps: u64,
+    /// Env steps truncated for a physics error (non-finite state).
+    #[serde(default)]
+    pub physics_errors: u64,
     /// Seconds since the last exchange (or since attach, before the first).
     #[serde(default)]
     pub idle_s: f64,
@@ -143,6 +146,9 @@ pub struct ServerStatus {
     pub threads: usize,
     /// Env steps served since start (summed over envs).
     pub env_steps: u64,
+    /// Env steps truncated for a physics error (non-finite state) since start.
+    #[serde(default)]
+    pub physics_errors: u64,
     /// Leases reclaimed from dead clients since start.
     pub reclaimed_leases: u64,
     /// Live leases.

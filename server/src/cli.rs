@@ -342,7 +342,7 @@ fn status(target: &Target, json: bool) -> Result<(), String> {
         return Ok(());
     }
     println!(
-        "server {:?}: pid {}, version {} (protocol {}), up {:.1} s, {} threads, {} env steps, {} leases reclaimed",
+        "server {:?}: pid {}, version {} (protocol {}), up {:.1} s, {} threads, {} env steps, {} physics errors, {} leases reclaimed",
         status.name,
         status.pid,
         status.version,
@@ -350,6 +350,7 @@ fn status(target: &Target, json: bool) -> Result<(), String> {
         status.uptime_s,
         status.threads,
         status.env_steps,
+        status.physics_errors,
         status.reclaimed_leases
     );
     if status.leases.is_empty() {

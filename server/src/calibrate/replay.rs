@@ -43,6 +43,9 @@ pub struct Model {
     pub exponent: f64,
     /// Maxwell branch, if any.
     pub relaxation: Option<Relaxation>,
+    /// A second Maxwell branch (relaxation on two time scales), if any.
+    #[serde(default)]
+    pub second_relaxation: Option<Relaxation>,
     /// Breathing: frequency \[Hz\] and amplitude \[m\]; phases per recording in
     /// `breathing_phase`.
     pub breathing: Option<(f64, f64)>,
@@ -105,6 +108,7 @@ impl Model {
             surface_offset,
             exponent: 1.0,
             relaxation: None,
+            second_relaxation: None,
             breathing: None,
             breathing_phase: Vec::new(),
             breathing_freq: Vec::new(),
@@ -173,6 +177,7 @@ impl Setup {
         t.damping = model.damping / MASS_SHARE;
         t.exponent = model.exponent;
         t.relaxation = model.relaxation.clone();
+        t.second_relaxation = model.second_relaxation.clone();
         t.moving_mass = model.moving_mass;
         t.depth_damping = model.depth_damping.clone();
         // The baseline has no tangential force; `sliding_friction` adds it.
@@ -337,7 +342,8 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
                 at_rest = !w.in_contact()
                     && torso.velocities().iter().all(|v| v.abs() < 1e-7)
                     && torso.displacements().iter().all(|u| u.abs() < 1e-7)
-                    && model.relaxation.is_none();
+                    && model.relaxation.is_none()
+                    && model.second_relaxation.is_none();
             }
             (w.force, w.in_contact())
         };

@@ -58,6 +58,7 @@ fn model_json(m: &Model) -> serde_json::Value {
         "surface_offset_m": m.surface_offset,
         "exponent": m.exponent,
         "relaxation": m.relaxation,
+        "second_relaxation": m.second_relaxation,
         "breathing_freq_hz": m.breathing.map(|b| b.0),
         "breathing_amplitude_m": m.breathing.map(|b| b.1),
         "breathing_edge_rise": m.breathing.map(|_| m.breathing_edge_rise),

@@ -11,6 +11,12 @@ pub struct Transition {
     pub terminated: bool,
 }
 
+/// Info key an env declares to hear of a physics error: a step whose observation or
+/// reward came out non-finite (an unstable configuration blew up) is truncated by the
+/// batch, its non-finite values are replaced by 0 (clients never see NaN), and this key
+/// is 1 for that step. `status` counts such steps for every env, declared or not.
+pub const PHYSICS_ERROR_KEY: &str = "physics_error";
+
 /// One environment instance.
 ///
 /// Actions handed to [`Env::step`] are already checked finite and clipped to the spec's

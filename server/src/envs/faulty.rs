@@ -6,7 +6,9 @@
 //! Config `panic_in`: `none` | `make` | `reset` | `step` | `drop`; `env_index`: which env
 //! misbehaves, counted over every Faulty env this server built, from 0 (default 0);
 //! `at_step`: the step that panics (default 1); `stall_ms`: that env sleeps this long in
-//! every step (a step that outlives the client's deadline).
+//! every step (a step that outlives the client's deadline); `nan_at_step`: that env's
+//! observation is NaN at this step of each episode (a physics blow-up; 0: never). It
+//! declares the `physics_error` info key.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -49,6 +51,8 @@ pub struct FaultyConfig {
     pub at_step: u64,
     /// Milliseconds the chosen env sleeps in every step.
     pub stall_ms: u64,
+    /// The episode step at which the chosen env's observation is NaN (0: never).
+    pub nan_at_step: u64,
 }
 
 /// Factory of `echogym/Faulty-v0`; numbers the envs it builds.
@@ -63,7 +67,7 @@ impl EnvFactory for FaultyEnvFactory {
     }
 
     fn description(&self) -> &'static str {
-        "fault injection for tests: panics in make, reset, step or drop"
+        "fault injection for tests: panics in make, reset, step or drop; NaN observations"
     }
 
     fn spec(
@@ -77,6 +81,7 @@ impl EnvFactory for FaultyEnvFactory {
         })?;
         Ok(EnvSpec::builder(FAULTY_ENV_ID, 1)
             .f32_field("obs", &[2])
+            .info_key(super::env::PHYSICS_ERROR_KEY)
             .max_episode_steps(Some(100))
             .config(resolved)
             .build())
@@ -98,6 +103,7 @@ impl EnvFactory for FaultyEnvFactory {
             },
             at_step: config.at_step.max(1),
             stall: std::time::Duration::from_millis(if faulty { config.stall_ms } else { 0 }),
+            nan_at_step: if faulty { config.nan_at_step } else { 0 },
             index,
             step: 0,
         }))
@@ -108,6 +114,7 @@ struct FaultyEnv {
     panic_in: PanicIn,
     at_step: u64,
     stall: std::time::Duration,
+    nan_at_step: u64,
     index: usize,
     step: u64,
 }
@@ -128,6 +135,9 @@ impl Env for FaultyEnv {
             panic!("injected fault: step {} of env {}", self.step, self.index);
         }
         self.observe(out);
+        if self.step == self.nan_at_step {
+            out.f32_field(0)[0] = f32::NAN;
+        }
         Transition {
             reward: 0.0,
             terminated: false,

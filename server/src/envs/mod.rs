@@ -15,7 +15,7 @@ mod registry;
 pub mod ultrasound_scan;
 
 pub use config::{EnvConfigError, parse_config};
-pub use env::{Env, EnvOutput, Transition};
+pub use env::{Env, EnvOutput, PHYSICS_ERROR_KEY, Transition};
 pub use factory::{EnvBuildError, EnvFactory};
 pub use faulty::{FAULTY_ENV_ID, FaultyConfig, FaultyEnvFactory, PanicIn};
 pub use null::{NULL_ENV_ID, NullConfig, NullEnvFactory};

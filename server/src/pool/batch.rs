@@ -10,11 +10,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use echogym_protocol::{
-    AutoresetMode, BatchLayout, EnvSpec, LayoutError, ObsField, Op, ResetFlag, StepStatus,
+    AutoresetMode, BatchLayout, DType, EnvSpec, LayoutError, ObsField, Op, ResetFlag, StepStatus,
 };
 
 use super::workers::WorkerPool;
-use crate::envs::{Env, EnvBuildError, EnvFactory, EnvOutput, Transition};
+use crate::envs::{Env, EnvBuildError, EnvFactory, EnvOutput, PHYSICS_ERROR_KEY, Transition};
 
 /// Why an exchange was refused or failed. Nothing was stepped unless `status` is
 /// `EnvFailure`.
@@ -67,6 +67,17 @@ struct Job<'a> {
     final_record: Option<&'a mut [u8]>,
     final_info: Option<&'a mut [f32]>,
     panicked: bool,
+    /// The step produced a non-finite observation or reward (see [`PHYSICS_ERROR_KEY`]).
+    physics_error: bool,
+}
+
+/// What one exchange did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Exchanged {
+    /// Env steps taken (resets excluded).
+    pub steps: u64,
+    /// Steps truncated for a physics error.
+    pub physics_errors: u64,
 }
 
 /// The typed blocks of an action sample: actions, reset flags, seeds.
@@ -80,6 +91,8 @@ pub struct EnvBatch {
     slots: Vec<Slot>,
     clipped: Vec<f32>,
     step_cost_ns: f64,
+    /// Index of [`PHYSICS_ERROR_KEY`] in the spec's info keys, if declared.
+    physics_error_info: Option<usize>,
 }
 
 /// Why a batch was not built.
@@ -164,8 +177,10 @@ impl EnvBatch {
                 needs_reset: true,
             });
         }
+        let physics_error_info = spec.info_keys.iter().position(|k| k == PHYSICS_ERROR_KEY);
         Ok(Self {
             clipped: vec![0.0; num_envs * spec.action.size],
+            physics_error_info,
             spec,
             layout,
             mode,
@@ -195,14 +210,15 @@ impl EnvBatch {
     }
 
     /// Run one exchange: read `action` (the action sample payload), write `obs` (the
-    /// observation sample payload, zero-filled). Returns the number of env steps taken.
+    /// observation sample payload, zero-filled). Returns the env steps taken and how many
+    /// were truncated for a physics error.
     pub fn exchange(
         &mut self,
         pool: &WorkerPool,
         op: Op,
         action: &[u8],
         obs: &mut [u8],
-    ) -> Result<u64, ExchangeError> {
+    ) -> Result<Exchanged, ExchangeError> {
         let (actions, flags, seeds) = self.validate(op, action, obs.len())?;
         self.clip(actions);
         let mut jobs = split_jobs(&self.layout, &self.clipped, flags, seeds, obs)?;
@@ -215,9 +231,10 @@ impl EnvBatch {
         let fields = self.spec.observation.as_slice();
         let (mode, max_steps) = (self.mode, self.spec.max_episode_steps);
         let cost = self.step_cost_ns;
+        let physics_error_info = self.physics_error_info;
         pool.for_each(&mut self.slots, &mut jobs, cost, |slot, job| {
             let outcome = catch_unwind(AssertUnwindSafe(|| {
-                run_job(slot, job, fields, op, mode, max_steps);
+                run_job(slot, job, fields, op, mode, max_steps, physics_error_info);
             }));
             if outcome.is_err() {
                 job.panicked = true;
@@ -225,6 +242,7 @@ impl EnvBatch {
             }
         });
         let panicked = jobs.iter().position(|j| j.panicked);
+        let physics_errors = jobs.iter().filter(|j| j.physics_error).count() as u64;
         drop(jobs);
         if steps > 0 {
             let per_env = started.elapsed().as_nanos() as f64 / self.slots.len() as f64;
@@ -236,7 +254,10 @@ impl EnvBatch {
         }
         match panicked {
             Some(env) => Err(ExchangeError::at(StepStatus::EnvFailure, env)),
-            None => Ok(steps),
+            None => Ok(Exchanged {
+                steps,
+                physics_errors,
+            }),
         }
     }
 
@@ -370,12 +391,29 @@ fn split_jobs<'a>(
                 final_info.as_mut().and_then(|c| c.next())
             },
             panicked: false,
+            physics_error: false,
         });
     }
     Ok(jobs)
 }
 
 /// One env's work for one exchange.
+/// Replace the non-finite values of `record`'s float fields by 0; whether any was.
+fn zero_non_finite(fields: &[ObsField], record: &mut [u8]) -> bool {
+    let mut repaired = false;
+    for field in fields.iter().filter(|f| f.dtype == DType::Float32) {
+        let bytes = &mut record[field.offset..field.offset + 4 * field.len()];
+        for chunk in bytes.chunks_exact_mut(4) {
+            let v = f32::from_ne_bytes([chunk[0], chunk[1], chunk[2], chunk[3]]);
+            if !v.is_finite() {
+                chunk.copy_from_slice(&0.0f32.to_ne_bytes());
+                repaired = true;
+            }
+        }
+    }
+    repaired
+}
+
 fn run_job(
     slot: &mut Slot,
     job: &mut Job<'_>,
@@ -383,15 +421,34 @@ fn run_job(
     op: Op,
     mode: AutoresetMode,
     max_steps: Option<u64>,
+    physics_error_info: Option<usize>,
 ) {
     job.info.fill(0.0);
     let mut out = EnvOutput::new(fields, job.record, job.info);
     match (job.reset, op) {
         (ResetFlag::Keep, Op::Reset) => slot.env.observe(&mut out),
         (ResetFlag::Keep, Op::Step) => {
-            let Transition { reward, terminated } = slot.env.step(job.action, &mut out);
+            let Transition {
+                mut reward,
+                terminated,
+            } = slot.env.step(job.action, &mut out);
             slot.episode_steps += 1;
-            let truncated = max_steps.is_some_and(|m| slot.episode_steps >= m);
+            let mut truncated = max_steps.is_some_and(|m| slot.episode_steps >= m);
+            let repaired = zero_non_finite(fields, job.record);
+            if repaired || !reward.is_finite() {
+                // The env's state is no longer physics: end the episode (a time-limit
+                // style truncation, not a terminal state) and say why.
+                job.physics_error = true;
+                truncated = true;
+                if !reward.is_finite() {
+                    reward = 0.0;
+                }
+                if let Some(k) = physics_error_info
+                    && let Some(v) = job.info.get_mut(k)
+                {
+                    *v = 1.0;
+                }
+            }
             *job.reward = reward;
             *job.terminated = u8::from(terminated);
             *job.truncated = u8::from(truncated);

@@ -3,5 +3,5 @@
 mod batch;
 mod workers;
 
-pub use batch::{BatchBuildError, EnvBatch, ExchangeError};
+pub use batch::{BatchBuildError, EnvBatch, ExchangeError, Exchanged};
 pub use workers::{PoolStartError, WorkerPool};

@@ -79,6 +79,7 @@ impl Dispatcher {
             uptime_s: self.started.elapsed().as_secs_f64(),
             threads: self.pool.threads(),
             env_steps: self.env_steps,
+            physics_errors: self.physics_errors,
             reclaimed_leases: self.reclaimed,
             leases: self
                 .leases
@@ -91,6 +92,7 @@ impl Dispatcher {
                     exchanges: l.exchanges,
                     age_s: l.created.elapsed().as_secs_f64(),
                     env_steps: l.env_steps,
+                    physics_errors: l.physics_errors,
                     idle_s: l.last_activity.elapsed().as_secs_f64(),
                     client_pid: pids.get(&l.client_node).copied(),
                 })

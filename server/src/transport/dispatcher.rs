@@ -82,6 +82,8 @@ pub struct Dispatcher {
     pub(super) instance: u32,
     pub(super) next_lease: u32,
     pub(super) env_steps: u64,
+    /// Env steps truncated for a physics error over the server's life.
+    pub(super) physics_errors: u64,
     pub(super) reclaimed: u64,
     pub(super) shutdown: Shutdown,
     last_reply: Instant,
@@ -185,6 +187,7 @@ impl Dispatcher {
             instance,
             next_lease: 1,
             env_steps: 0,
+            physics_errors: 0,
             reclaimed: 0,
             shutdown,
             last_reply: Instant::now(),
@@ -328,7 +331,10 @@ impl Dispatcher {
         // `ready` is sorted by lease index already (built in order), so work and
         // batches line up.
         let pool = &self.pool;
-        let results: Vec<(u64, Result<u64, crate::pool::ExchangeError>)> = if work.len() == 1 {
+        let results: Vec<(
+            u64,
+            Result<crate::pool::Exchanged, crate::pool::ExchangeError>,
+        )> = if work.len() == 1 {
             let (op, action, obs, seq) = &mut work[0];
             vec![(*seq, batches[0].exchange(pool, *op, action, obs))]
         } else {
@@ -353,9 +359,11 @@ impl Dispatcher {
             header.env_index = u32::MAX;
             header.element_index = u32::MAX;
             match result {
-                Ok(steps) => {
-                    self.env_steps += steps;
-                    lease.env_steps += steps;
+                Ok(done) => {
+                    self.env_steps += done.steps;
+                    lease.env_steps += done.steps;
+                    self.physics_errors += done.physics_errors;
+                    lease.physics_errors += done.physics_errors;
                     header.status = StepStatus::Ok as u32;
                 }
                 Err(e) => {

@@ -22,6 +22,8 @@ pub(crate) struct Lease {
     pub created: Instant,
     pub exchanges: u64,
     pub env_steps: u64,
+    /// Env steps truncated for a physics error.
+    pub physics_errors: u64,
     pub last_activity: Instant,
     pub batch: EnvBatch,
     /// An action received while no observation sample could be loaned (the client
@@ -73,6 +75,7 @@ impl Lease {
             created: Instant::now(),
             exchanges: 0,
             env_steps: 0,
+            physics_errors: 0,
             last_activity: Instant::now(),
             batch,
             held_action: None,

@@ -77,6 +77,20 @@ pub(super) fn fit_with(
     damping: bool,
     candidate: &Columns<'_>,
 ) -> (f64, Vec<f64>, Vec<Vec<f64>>) {
+    let (g, beta, predicted, _) = fit_scored(series, train, grid, base, damping, candidate);
+    (g, beta, predicted)
+}
+
+/// [`fit_with`], also returning the training sum of squares at the best grid value (to
+/// compare candidate forms of one effect).
+pub(super) fn fit_scored(
+    series: &[Series],
+    train: &[bool],
+    grid: &[f64],
+    base: Base,
+    damping: bool,
+    candidate: &Columns<'_>,
+) -> (f64, Vec<f64>, Vec<Vec<f64>>, f64) {
     let level: Vec<Vec<f64>> = series.iter().map(|s| level_column(s, base)).collect();
     let targets: Vec<Vec<f64>> = series.iter().map(|s| s.residual.clone()).collect();
     let mut best: Option<(f64, Solved)> = None;
@@ -96,7 +110,7 @@ pub(super) fn fit_with(
         }
     }
     let (g, solved) = best.expect("a grid value");
-    (g, solved.beta, solved.predicted)
+    (g, solved.beta, solved.predicted, solved.sse)
 }
 
 /// A recording's own surface level, linearised: `k` where touching. The baseline fits

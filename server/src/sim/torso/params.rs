@@ -77,6 +77,10 @@ pub struct TorsoParams {
     /// Viscoelastic relaxation: a Maxwell branch per particle ([`super::MaxwellBranch`]).
     /// Default none.
     pub relaxation: Option<super::Relaxation>,
+    /// A second Maxwell branch with its own time constant (tissue often relaxes on two
+    /// time scales, e.g. 0.5 s and 5 s). Default none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub second_relaxation: Option<super::Relaxation>,
     /// Damping that grows with indentation (Hunt–Crossley-like,
     /// [`super::DepthDamping`]). Default none.
     pub depth_damping: Option<super::DepthDamping>,
@@ -123,6 +127,7 @@ impl Default for TorsoParams {
             depth_damping: None,
             exponent: 1.0,
             relaxation: None,
+            second_relaxation: None,
             moving_mass: 0.0,
             stiffness_sites: Vec::new(),
         }
@@ -279,15 +284,22 @@ impl TorsoParams {
             "in [0.5, 4]",
             self.exponent,
         )?;
-        if let Some(r) = &self.relaxation {
+        for (r, [ratio, tau]) in [
+            (&self.relaxation, ["relaxation.ratio", "relaxation.tau_s"]),
+            (
+                &self.second_relaxation,
+                ["second_relaxation.ratio", "second_relaxation.tau_s"],
+            ),
+        ] {
+            let Some(r) = r else { continue };
             check(
-                "relaxation.ratio",
+                ratio,
                 (0.0..=10.0).contains(&r.ratio),
                 "in [0, 10]",
                 r.ratio,
             )?;
             check(
-                "relaxation.tau_s",
+                tau,
                 r.tau_s > 1e-3 && r.tau_s <= 1e3,
                 "in (0.001, 1000] s",
                 r.tau_s,

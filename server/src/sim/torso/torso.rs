@@ -87,7 +87,7 @@ impl Torso {
                 exponent: params.exponent,
             }));
         }
-        if let Some(r) = &params.relaxation {
+        for r in params.relaxation.iter().chain(&params.second_relaxation) {
             laws.push(Box::new(MaxwellBranch {
                 stiffness: spring.iter().map(|k| k * r.ratio).collect(),
                 tau: r.tau_s,
