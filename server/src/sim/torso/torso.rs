@@ -654,6 +654,7 @@ impl Torso {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sim::torso::Relaxation;
 
     fn level_probe(x: f64, y: f64, z: f64, vz: f64) -> ProbeKinematics {
         ProbeKinematics::upright([x, y, z], [0.0, 0.0, vz])
@@ -688,6 +689,62 @@ mod tests {
             wrench.force[2]
         );
         assert!(wrench.force[2] > 0.0 && wrench.samples_in_contact >= 20);
+    }
+
+    #[test]
+    fn two_maxwell_branches_relax_on_two_time_scales() {
+        // A probe pushed 8 mm and held: the force right after the push carries every
+        // branch, and each branch has gone after a few of its time constants.
+        let force_after = |second: Option<Relaxation>, hold_s: f64| {
+            let params = TorsoParams {
+                relaxation: Some(Relaxation {
+                    ratio: 0.5,
+                    tau_s: 0.2,
+                }),
+                second_relaxation: second,
+                ..TorsoParams::default()
+            };
+            let mut torso = Torso::new(params, ProbeFace::default()).unwrap();
+            let top = torso.params().top_z();
+            let mut f = 0.0;
+            let push_steps = 40; // 80 ms to 8 mm
+            let steps = push_steps + (hold_s / 0.002) as usize;
+            for k in 0..steps {
+                let depth = 0.008 * (k.min(push_steps) as f64 / push_steps as f64);
+                let v = if k < push_steps { -0.1 } else { 0.0 };
+                f = torso
+                    .step(0.002, Some(&level_probe(0.0, 0.0, top - depth, v)))
+                    .force[2];
+            }
+            f
+        };
+        let slow = Some(Relaxation {
+            ratio: 0.5,
+            tau_s: 3.0,
+        });
+        let (one_early, two_early) = (force_after(None, 0.05), force_after(slow.clone(), 0.05));
+        let (one_late, two_late) = (force_after(None, 1.5), force_after(slow, 1.5));
+        // The second branch adds force, and keeps e^(−1.45 / 3) ≈ 62 % of it from 0.05 s
+        // to 1.5 s of the hold, while the fast one (τ 0.2 s) is gone by then.
+        let (early, late) = (two_early - one_early, two_late - one_late);
+        assert!(early > 0.1 * one_early, "{two_early} vs {one_early}");
+        assert!(
+            (0.45..0.8).contains(&(late / early)),
+            "slow branch kept {late} of {early} N"
+        );
+        assert!(
+            one_late < one_early * 0.9,
+            "the fast branch relaxed: {one_late} vs {one_early}"
+        );
+        let invalid = TorsoParams {
+            second_relaxation: Some(Relaxation {
+                ratio: -1.0,
+                tau_s: 1.0,
+            }),
+            ..TorsoParams::default()
+        };
+        let err = invalid.validate().unwrap_err();
+        assert_eq!(err.key, "second_relaxation.ratio");
     }
 
     #[test]
