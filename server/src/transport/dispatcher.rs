@@ -387,10 +387,11 @@ impl Dispatcher {
     }
 
     /// Drop every lease whose client node is no longer alive.
+    /// Reclaim the leases and pending attaches of dead clients, and remove what dead
+    /// nodes left in `/dev/shm`. The listing runs even with no lease: a client killed
+    /// while its lease was being closed leaves segments that only a later pass can
+    /// remove (found by the soak benchmark: 7 segments per 5 kills otherwise).
     fn reclaim_dead_clients(&mut self) {
-        if self.leases.is_empty() && self.pending.is_empty() {
-            return;
-        }
         let mut alive = Vec::new();
         let mut dead = 0usize;
         let listed = Node::<ipc::Service>::list(&self.iox_config, |state| {
