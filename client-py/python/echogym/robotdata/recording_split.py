@@ -16,7 +16,7 @@ __all__ = ["Piece", "classify_protocol", "split"]
 
 MIN_SAMPLES = 10
 #: Travel along the surface in one contact that makes a slide [m].
-SLIDE_TRAVEL_M = 0.01
+SLIDE_TRAVEL_M = 0.02
 #: Depth reversals in one contact that make a chirp (oscillation) rather than a press.
 CHIRP_REVERSALS = 6
 
@@ -33,7 +33,7 @@ class Piece:
 
 
 def classify_protocol(t: np.ndarray, position: np.ndarray, contacts: list[Contact]) -> str:
-    """``slide`` when the tip travels ≥ 1 cm sideways in a contact, ``chirp`` when the
+    """``slide`` when the tip travels ≥ 2 cm sideways in a contact, ``chirp`` when the
     depth reverses ≥ 6 times by more than 0.2 mm in a contact, else ``press``."""
     for c in contacts:
         xy = position[c.start:c.end, :2]
