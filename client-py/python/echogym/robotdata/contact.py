@@ -41,9 +41,12 @@ def free_air_level(fz: np.ndarray) -> tuple[float, float]:
     return level, sigma
 
 
-def contact_runs(t: np.ndarray, fz: np.ndarray, threshold: float) -> tuple[list[Contact], np.ndarray]:
-    """The contacts and the in-contact mask (after merging and dropping short ones)."""
-    level, _ = free_air_level(fz)
+def contact_runs(t: np.ndarray, fz: np.ndarray, threshold: float,
+                 level: float | None = None) -> tuple[list[Contact], np.ndarray]:
+    """The contacts and the in-contact mask (after merging and dropping short ones);
+    ``level`` is the free-air level (default: :func:`free_air_level` of ``fz``)."""
+    if level is None:
+        level, _ = free_air_level(fz)
     above = fz - level > threshold
     edges = np.flatnonzero(np.diff(np.concatenate([[0], above.astype(int), [0]])))
     runs = [Contact(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]

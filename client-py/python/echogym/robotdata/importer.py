@@ -124,13 +124,29 @@ def _prepare(path: str | Path, options: ImportOptions) -> _Prepared:
         model = gravity.GravityModel("given", mass_kg=float(mass),
                                      notes={"torques": "not compensated (centre of mass unknown)"})
     f_world, tq_world = gravity.compensate(f_world, tq_world, rotation, model)
-    _, sigma = contact_mod.free_air_level(f_world[:, 2])
-    threshold = options.contact_threshold_n or max(0.5, 6 * sigma)
-    contacts, _ = contact_mod.contact_runs(a.t, f_world[:, 2], threshold)
     notes = {**log.provenance, "alignment": a.notes, "wrench_frame": frame,
-             "gravity": model.describe(), "contact_threshold_n": round(threshold, 4),
-             "contacts": len(contacts)}
-    return _Prepared(log, a.t, tip, f_world, tq_world, contacts, notes)
+             "gravity": model.describe()}
+    return _Prepared(log, a.t, tip, f_world, tq_world, [], notes)
+
+
+def _find_contacts(prepared: list[_Prepared], options: ImportOptions) -> dict:
+    """Contacts of every source against one free-air level pooled over the session (one
+    sensor): a source that never leaves the body (a chirp, a slide) has no free air of
+    its own to judge by."""
+    level, sigma = contact_mod.free_air_level(np.concatenate([p.force[:, 2] for p in prepared]))
+    threshold = options.contact_threshold_n or max(0.5, 6 * sigma)
+    for p in prepared:
+        # Within each gap-free stretch: a contact never spans a gap (each side of it
+        # becomes its own recording).
+        p.contacts = []
+        for piece in stretches(p.t, gap_threshold(p.t)):
+            found, _ = contact_mod.contact_runs(p.t[piece], p.force[piece, 2], threshold, level)
+            p.contacts += [contact_mod.Contact(c.start + piece.start, c.end + piece.start)
+                           for c in found]
+        p.notes["contacts"] = len(p.contacts)
+    return {"free_air_fz_n": round(level, 4), "noise_n": round(sigma, 4),
+            "threshold_n": round(threshold, 4),
+            "how": "given" if options.contact_threshold_n else "max(0.5 N, 6 σ of free air)"}
 
 
 def import_logs(sources: list[str | Path] | str | Path, out: str | Path,
@@ -149,6 +165,7 @@ def import_logs(sources: list[str | Path] | str | Path, out: str | Path,
     options = dataclasses.replace(options or ImportOptions(), **overrides)  # type: ignore[arg-type]
     options.check()
     prepared = [_prepare(path, options) for path in sources]
+    contact_note = _find_contacts(prepared, options)
     all_contacts = [(p, c) for p in prepared for c in p.contacts]
     if not all_contacts:
         raise RobotDataError(sources[0], "no contact with the body found in any source (force "
@@ -221,6 +238,7 @@ def import_logs(sources: list[str | Path] | str | Path, out: str | Path,
                 "split": options.split,
             },
             "estimated": {"nominal_surface_z": surface_how, "torso_center_xy": centre_how},
+            "contact": contact_note,
             "sites": {"named_by": ("clusters" if isinstance(options.sites, str) else
                                    "site map" if options.sites else "the seed's five sites"),
                       "world_xy": site_table},
