@@ -15,6 +15,7 @@ __all__ = [
     "cli_main",
     "resolve_spec",
     "registered_envs",
+    "read_recordings",
     "leftover_segments",
     "remove_location",
     "EchogymError",
