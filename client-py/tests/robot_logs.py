@@ -101,10 +101,13 @@ def sample(s: Session, stamps: np.ndarray, values: np.ndarray) -> np.ndarray:
 
 
 def write_ros2_bag(path: Path, s: Session, storage: str, wrench_rate=500.0, pose_rate=125.0,
-                   pose_kind="pose", bias=0.0, seed=0, receive_lag=0.002) -> None:
+                   pose_kind="pose", bias=0.0, seed=0, receive_lag=0.002,
+                   pose_clock_offset=0.0) -> None:
     """A ROS 2 bag written by rosbags' Writer (``storage`` ``sqlite3`` or ``mcap``):
     ``/ft_sensor/wrench`` (WrenchStamped, frame ``tool0``) and ``/tcp_pose`` (PoseStamped of
-    the flange in ``base``), or ``/tf`` (``pose_kind="tf"``, base → tool0)."""
+    the flange in ``base``), or ``/tf`` (``pose_kind="tf"``, base → tool0). The pose's
+    header stamps may run on another clock (``pose_clock_offset`` s ahead); the bag's
+    receive times are on the recorder's clock for both."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
@@ -130,7 +133,8 @@ def write_ros2_bag(path: Path, s: Session, storage: str, wrench_rate=500.0, pose
             wrench=ts.types["geometry_msgs/msg/Wrench"](force=Vector3(x=f[0], y=f[1], z=f[2]),
                                                        torque=Vector3(x=0.0, y=0.0, z=0.0)))
         messages.append((stamp, "/ft_sensor/wrench", wrench_type, msg))
-    for stamp, p in zip(tp, flange):
+    for true_stamp, p in zip(tp, flange):
+        stamp = true_stamp + pose_clock_offset
         pose = ts.types["geometry_msgs/msg/Pose"](
             position=ts.types["geometry_msgs/msg/Point"](x=p[0], y=p[1], z=p[2]),
             orientation=ts.types["geometry_msgs/msg/Quaternion"](x=1.0, y=0.0, z=0.0, w=0.0))
@@ -139,10 +143,10 @@ def write_ros2_bag(path: Path, s: Session, storage: str, wrench_rate=500.0, pose
                 header=header(stamp, "base"), child_frame_id="tool0",
                 transform=ts.types["geometry_msgs/msg/Transform"](
                     translation=Vector3(x=p[0], y=p[1], z=p[2]), rotation=pose.orientation))
-            messages.append((stamp, "/tf", "tf2_msgs/msg/TFMessage",
+            messages.append((true_stamp, "/tf", "tf2_msgs/msg/TFMessage",
                              ts.types["tf2_msgs/msg/TFMessage"](transforms=[tf])))
         else:
-            messages.append((stamp, "/tcp_pose", "geometry_msgs/msg/PoseStamped",
+            messages.append((true_stamp, "/tcp_pose", "geometry_msgs/msg/PoseStamped",
                              ts.types["geometry_msgs/msg/PoseStamped"](header=header(stamp, "base"),
                                                                        pose=pose)))
     messages.sort(key=lambda m: m[0])

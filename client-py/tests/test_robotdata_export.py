@@ -225,6 +225,13 @@ def test_the_servers_recorder_output_exports_too(ipc, tmp_path: Path) -> None:
         fz = [reader.deserialize(raw, c.msgtype).wrench.force.z for c, _, raw in reader.messages(conns)]
         frames = {reader.deserialize(raw, c.msgtype).header.frame_id for c, _, raw in reader.messages(conns)}
     assert frames == {"world"} and np.allclose(fz, rows["fz"], atol=1e-6)
+    # Back through the importer: a wrench in the pose's parent frame is taken as is.
+    result = import_logs(bag, tmp_path / "dataset", wrench_topic="/echogym/wrench",
+                         pose_topic="/echogym/probe_pose", probe_mass="none")
+    assert result.meta["provenance"]["sources"][0]["wrench_frame"] == "world"
+    back = np.genfromtxt(tmp_path / "dataset" / result.recordings[0]["file"], delimiter=",", names=True)
+    assert len(back) == len(rows) and np.allclose(back["fz"], rows["fz"], atol=1e-6)
+    assert np.allclose(back["pz"], rows["pz"], atol=1e-9)
     out = export_episodes(tmp_path / "rec", tmp_path / "lerobot", "lerobot")
     features = json.loads((out / "meta" / "info.json").read_text())["features"]
     assert features["observation.wrench"]["names"][:3] == ["force.fx", "force.fy", "force.fz"]

@@ -95,6 +95,34 @@ def test_tf_pose_and_a_given_mass_keep_the_sensor_bias(tmp_path: Path) -> None:
     assert not (tmp_path / "out2").exists()
 
 
+def test_topics_stamped_on_different_clocks_meet_on_the_receive_clock(tmp_path: Path) -> None:
+    session = R.session(SITES)
+    # The pose is stamped by a controller whose clock runs 37.5 s ahead of the sensor's PC.
+    R.write_ros2_bag(tmp_path / "bag", session, "sqlite3", pose_clock_offset=37.5)
+    result = import_logs(tmp_path / "bag", tmp_path / "out", **BAG_TOPICS)
+    clock = result.meta["provenance"]["sources"][0]["clock"]
+    assert clock["used"] == "header shifted to receive clock"
+    assert abs(clock["shift_s"]["pose"] - (0.002 - 37.5)) < 1e-6
+    check_against_truth(tmp_path / "out", session, result.meta, tol_n=0.06)
+    with pytest.raises(NoPoseInReachError):
+        import_logs(tmp_path / "bag", tmp_path / "out2", clock="header", **BAG_TOPICS)
+
+
+def test_sites_by_cluster_or_by_a_site_map(tmp_path: Path) -> None:
+    session = R.session(SITES)
+    R.write_ros2_bag(tmp_path / "bag", session, "mcap")
+    result = import_logs(tmp_path / "bag", tmp_path / "clusters", sites="cluster", **BAG_TOPICS)
+    assert [e["site"] for e in result.recordings] == ["site_1", "site_2", "site_3", "site_4", "site_1"]
+    site_map = {"navel": [0.0, 0.0], "liver": [-0.06, 0.08], "spleen": [0.06, 0.08],
+                "bladder": [0.0, -0.1]}
+    result = import_logs(tmp_path / "bag", tmp_path / "named", sites=site_map,
+                         torso_center=list(R.TORSO_CENTER), **BAG_TOPICS)
+    assert [e["site"] for e in result.recordings] == ["navel", "liver", "bladder", "spleen", "navel"]
+    assert result.meta["provenance"]["estimated"]["torso_center_xy"] == "given"
+    with pytest.raises(MappingError, match="tool_ofset"):
+        import_logs(tmp_path / "bag", tmp_path / "x", tool_ofset=[0, 0, 0.1], **BAG_TOPICS)
+
+
 def test_a_bare_mcap_from_the_mcap_writer_imports(tmp_path: Path) -> None:
     session = R.session(SITES)
     R.write_bare_mcap(tmp_path / "log.mcap", session)

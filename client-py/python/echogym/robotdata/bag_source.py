@@ -47,7 +47,7 @@ def _frame(name: str) -> str:
 
 def read_bag(path: str | Path, options: ImportOptions) -> SourceLog:
     """The wrench and pose topics of the bag at ``path`` as series on one clock."""
-    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
     path = Path(path)
@@ -57,7 +57,7 @@ def read_bag(path: str | Path, options: ImportOptions) -> SourceLog:
     try:
         reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
         reader.open()
-    except (AnyReaderError, Exception) as exc:  # rosbags raises several reader errors
+    except Exception as exc:  # rosbags raises several reader errors, not one base class
         raise LogFormatError(path, f"not a readable bag: {exc}") from None
     try:
         found = {c.topic: c.msgtype for c in reader.connections}

@@ -77,8 +77,8 @@ def read_csv(path: str | Path, options: ImportOptions) -> SourceLog:
         angles = columns(c.rpy, "rpy")
         orientation = np.full((len(body), 4), np.nan)
         ok = ~np.isnan(angles).any(axis=1)
-        orientation[ok] = quaternion_from_matrix(np.array([matrix_from_rpy(a) for a in angles[ok]])) \
-            if ok.any() else orientation[ok]
+        if ok.any():
+            orientation[ok] = quaternion_from_matrix(np.array([matrix_from_rpy(a) for a in angles[ok]]))
     else:
         fixed = quaternion_from_matrix(matrix_from_rpy(c.orientation_rpy))
         orientation = np.where(np.isnan(position[:, :1]), np.nan, fixed[None, :])

@@ -15,8 +15,8 @@ from echogym.robotdata import contact as contact_mod
 from echogym.robotdata import gravity
 from echogym.robotdata.bag_source import is_bag, read_bag
 from echogym.robotdata.csv_source import read_csv
-from echogym.robotdata.dataset_out import RecordingOut, write_dataset
-from echogym.robotdata.errors import LogFormatError, RobotDataError
+from echogym.robotdata.dataset_out import FORMAT, RecordingOut, write_dataset
+from echogym.robotdata.errors import LogFormatError, MappingError, RobotDataError
 from echogym.robotdata.frames import tip_positions, wrench_in_tool, wrench_to_world
 from echogym.robotdata.options import ImportOptions
 from echogym.robotdata.recording_split import classify_protocol, split
@@ -162,6 +162,10 @@ def import_logs(sources: list[str | Path] | str | Path, out: str | Path,
         sources = [sources]
     if not sources:
         raise RobotDataError(out, "no source files given")
+    known = {f.name for f in dataclasses.fields(ImportOptions)}
+    for name in overrides:
+        if name not in known:
+            raise MappingError("options", f"unknown option; known: {sorted(known)}", where=name)
     options = dataclasses.replace(options or ImportOptions(), **overrides)  # type: ignore[arg-type]
     options.check()
     prepared = [_prepare(path, options) for path in sources]
@@ -245,7 +249,5 @@ def import_logs(sources: list[str | Path] | str | Path, out: str | Path,
         },
     }
     path = write_dataset(out, meta, recordings)
-    from echogym.robotdata.dataset_out import FORMAT
-
     return ImportResult(path, {"format": FORMAT, **meta,
                                "recordings": [r.entry for r in recordings]})

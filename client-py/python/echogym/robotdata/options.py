@@ -5,6 +5,7 @@ keys are listed in :data:`MAPPING_KEYS` (docs/data.md shows a full file)."""
 from __future__ import annotations
 
 import dataclasses
+import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,17 +34,13 @@ class CsvColumns:
     position_unit: str = "m"
     quaternion: list[str] | None = None
     rpy: list[str] | None = None
-    orientation_rpy: list[float] = field(default_factory=lambda: [np_pi(), 0.0, 0.0])
+    #: Default: the probe upright, its z axis pointing down (π about x).
+    orientation_rpy: list[float] = field(default_factory=lambda: [math.pi, 0.0, 0.0])
     force: list[str] = field(default_factory=lambda: ["fx", "fy", "fz"])
     force_unit: str = "N"
     torque: list[str] | None = None
     torque_unit: str = "N*m"
     delimiter: str = ","
-
-
-def np_pi() -> float:
-    """π: the default CSV orientation is the probe upright, its z axis pointing down."""
-    return 3.141592653589793
 
 
 @dataclass

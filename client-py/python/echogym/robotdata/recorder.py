@@ -18,6 +18,7 @@ import gymnasium
 import numpy as np
 
 from echogym.robotdata.episodes import EPISODES_FORMAT
+from echogym.robotdata.errors import ExportError
 
 __all__ = ["EpisodeWriter", "RecordEpisodes", "RecordVectorEpisodes"]
 
@@ -28,7 +29,7 @@ class EpisodeWriter:
     def __init__(self, out: str | Path, spec: dict, task: str = "") -> None:
         self.out = Path(out)
         if self.out.exists():
-            raise FileExistsError(f"{self.out} exists; episodes go to a new folder")
+            raise ExportError(self.out, "exists; episodes go to a new folder")
         self.temp = self.out.with_name(f".{self.out.name}.partial-{os.getpid()}")
         shutil.rmtree(self.temp, ignore_errors=True)
         self.temp.mkdir(parents=True)
