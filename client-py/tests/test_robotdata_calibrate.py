@@ -6,7 +6,8 @@ file, millimetres and milliseconds, the flange's pose 11 cm above the tip, and t
 in the sensor frame with the probe's 0.25 kg in it. `echogym import` turns it into a
 dataset on which `echogym calibrate` finds the concealed bias and the generator's sites.
 
-The calibration takes 2–4 minutes on 2 cores, so this test is deselected by default
+The calibration takes minutes (≈ 4 unloaded on 2 cores, far longer on a shared machine),
+so this test is deselected by default
 (marker `calibrate_e2e`; run it with `-m calibrate_e2e`)."""
 
 from __future__ import annotations
@@ -84,7 +85,7 @@ def test_a_60_hz_robot_log_imports_and_calibrates(tmp_path: Path) -> None:
     assert np.allclose(seen["torso_center_xy"], truth["nuisances"]["torso_center_xy"], atol=3e-3)
     run = subprocess.run([sys.executable, "-m", "echogym", "calibrate", str(tmp_path / "dataset"),
                           "--out", str(tmp_path / "cal"), "--quiet"], capture_output=True, text=True,
-                         timeout=900)
+                         timeout=2400)
     assert run.returncode == 0, run.stderr[-3000:]
     report = json.loads((tmp_path / "cal" / "report.json").read_text())
     named = {e["name"]: e for e in report["effects"]}
