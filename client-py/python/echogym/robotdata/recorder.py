@@ -118,6 +118,10 @@ class RecordVectorEpisodes(gymnasium.vector.VectorWrapper):
 
     def __init__(self, env: gymnasium.vector.VectorEnv, out: str | Path, task: str = "") -> None:
         super().__init__(env)
+        mode = env.metadata.get("autoreset_mode")
+        if mode is not None and mode != gymnasium.vector.AutoresetMode.SAME_STEP:
+            raise ExportError(out, f"records vector envs with same-step autoreset, not {mode}",
+                              where="autoreset_mode")
         spec = getattr(env.unwrapped, "echo_spec", {})
         self.writer = EpisodeWriter(out, spec, task)
         self._obs: dict | None = None
