@@ -240,7 +240,9 @@ def test_the_servers_recorder_output_exports_too(ipc, tmp_path: Path) -> None:
 
 
 def test_round_trip_env_to_bag_to_import_names_the_sensor_bias(server, tmp_path: Path) -> None:
-    sites = record_presses(tmp_path / "episodes", 10,
+    # Eight short presses (≈ 3 s each): enough for a train / validation / test split,
+    # little enough for the calibration to take ≈ 1.5 minutes.
+    sites = record_presses(tmp_path / "episodes", 8, task={"press_depth": 0.012, "hold_time": 0.5},
                            ft_sensor={"bias": [0.0, 0.0, BIAS_N, 0.0, 0.0, 0.0], "force_noise": 0.05})
     bag = export_episodes(tmp_path / "episodes", tmp_path / "bag", "rosbag2")
     result = import_logs(bag, tmp_path / "dataset", wrench_topic="/echogym/wrench",
