@@ -254,6 +254,8 @@ def test_bad_input_is_refused_naming_topic_or_column_and_time(tmp_path: Path) ->
         import_logs(tmp_path / "bag", out, wrench_topic="/ft_sensor/wrnch", pose_topic="/tcp_pose")
     with pytest.raises(UnknownMessageTypeError, match="PoseStamped cannot be the wrench"):
         import_logs(tmp_path / "bag", out, wrench_topic="/tcp_pose", pose_topic="/tcp_pose")
+    with pytest.raises(MappingError, match="wrench_sign.*force rises when the probe goes up"):
+        import_logs(tmp_path / "bag", out, wrench_sign=-1.0, probe_mass=R.PROBE_MASS, **BAG_TOPICS)
     with pytest.raises(NoPoseInReachError, match="/ft_sensor/wrench.*no wrench sample has a pose"):
         import_logs(tmp_path / "bag", out, pose_time_offset_s=3600.0, **BAG_TOPICS)
 

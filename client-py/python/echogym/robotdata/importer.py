@@ -149,6 +149,25 @@ def _find_contacts(prepared: list[_Prepared], options: ImportOptions) -> dict:
             "how": "given" if options.contact_threshold_n else "max(0.5 N, 6 σ of free air)"}
 
 
+def _check_force_sign(prepared: list[_Prepared], source: str | Path) -> None:
+    """Contact pushes up and happens below free air: if the samples taken for contact lie
+    higher than the rest, the force's sign (or frame) is wrong, and every later step would
+    be nonsense."""
+    inside, outside = [], []
+    for p in prepared:
+        mask = np.zeros(len(p.t), bool)
+        for c in p.contacts:
+            mask[c.start:c.end] = True
+        inside.append(p.tip[mask, 2])
+        outside.append(p.tip[~mask, 2])
+    z_in, z_out = np.concatenate(inside), np.concatenate(outside)
+    if len(z_in) and len(z_out) and np.median(z_in) > np.median(z_out):
+        raise MappingError(source, "the force rises when the probe goes up (median tip height "
+                           f"{np.median(z_in):.4f} m where the force is high, {np.median(z_out):.4f} m "
+                           "elsewhere): the wrench's sign or frame is wrong; try wrench_sign = -1, "
+                           "or check sensor_rotation_rpy and wrench_frame", where="wrench_sign")
+
+
 def import_logs(sources: list[str | Path] | str | Path, out: str | Path,
                 options: ImportOptions | None = None, **overrides: object) -> ImportResult:
     """Import ``sources`` into the dataset folder ``out`` (see docs/data.md).
@@ -170,6 +189,7 @@ def import_logs(sources: list[str | Path] | str | Path, out: str | Path,
     options.check()
     prepared = [_prepare(path, options) for path in sources]
     contact_note = _find_contacts(prepared, options)
+    _check_force_sign(prepared, sources[0])
     all_contacts = [(p, c) for p in prepared for c in p.contacts]
     if not all_contacts:
         raise RobotDataError(sources[0], "no contact with the body found in any source (force "
