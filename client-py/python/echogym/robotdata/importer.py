@@ -70,6 +70,7 @@ class _Prepared:
 
 
 def _dilate(mask: np.ndarray, t: np.ndarray, margin: float) -> np.ndarray:
+    """``mask`` widened by ``margin`` seconds either side of every true sample."""
     out = mask.copy()
     idx = np.flatnonzero(mask)
     if len(idx):
@@ -83,7 +84,8 @@ def _dilate(mask: np.ndarray, t: np.ndarray, margin: float) -> np.ndarray:
 
 
 def _prepare(path: str | Path, options: ImportOptions) -> _Prepared:
-    """One source on one clock, in the world frame, gravity compensated, contacts found."""
+    """One source on one clock, in the world frame, gravity compensated (its contacts are
+    found afterwards, against the whole session's free-air level)."""
     log = read_source(path, options)
     a = align(path, log.wrench, log.pose, options.rate_hz, options.pose_reach_s)
     rotation = matrix_from_quaternion(a.quaternion)
