@@ -38,6 +38,41 @@ fn resolve_spec(env_id: &str, config_json: &str) -> PyResult<String> {
     Ok(serde_json::to_string(&spec).expect("spec serializes"))
 }
 
+/// Read the `echogym-recordings/1` dataset in `dir` with the calibration tool's own
+/// reader and summarise it as JSON: `nominal_surface_z`, `torso_center_xy` and per
+/// recording (a file cut at gaps gives one per segment) `file`, `site`, `protocol`,
+/// `samples`, `rate_hz`, `t_start`, `t_end`. A dataset the reader refuses raises
+/// `ValueError` with its message (file, row).
+#[pyfunction]
+fn read_recordings(py: Python<'_>, dir: std::path::PathBuf) -> PyResult<String> {
+    let dataset = py
+        .detach(|| echogym::recordings::Dataset::read(&dir))
+        .map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()))?;
+    let recordings: Vec<serde_json::Value> = dataset
+        .meta
+        .recordings
+        .iter()
+        .zip(&dataset.recordings)
+        .map(|(entry, rec)| {
+            serde_json::json!({
+                "file": entry.file,
+                "site": entry.site,
+                "protocol": entry.protocol,
+                "samples": rec.len(),
+                "rate_hz": rec.rate_hz(),
+                "t_start": rec.t.first(),
+                "t_end": rec.t.last(),
+            })
+        })
+        .collect();
+    Ok(serde_json::json!({
+        "nominal_surface_z": dataset.meta.nominal_surface_z,
+        "torso_center_xy": dataset.meta.torso_center_xy,
+        "recordings": recordings,
+    })
+    .to_string())
+}
+
 /// The registered env ids with their one-line descriptions.
 #[pyfunction]
 fn registered_envs() -> Vec<(String, String)> {
@@ -79,6 +114,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(cli_main, m)?)?;
     m.add_function(wrap_pyfunction!(resolve_spec, m)?)?;
     m.add_function(wrap_pyfunction!(registered_envs, m)?)?;
+    m.add_function(wrap_pyfunction!(read_recordings, m)?)?;
     m.add_function(wrap_pyfunction!(leftover_segments, m)?)?;
     m.add_function(wrap_pyfunction!(remove_location, m)?)?;
     errors::register(m)?;

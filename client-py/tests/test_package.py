@@ -159,12 +159,13 @@ def test_every_third_party_import_is_declared():
     core, extras = _declared()
     library: set[str] = set()
     everything: set[str] = set()
-    # Adapters that need an extra are library modules imported on their own.
-    optional_adapters = {"echogym.torchrl", "echogym.sb3"}
+    # Adapters that need an extra are library modules imported on their own; so is the
+    # robot-data subpackage (`echogym[robotdata]`: rosbags, pyarrow).
+    optional_adapters = ("echogym.torchrl", "echogym.sb3", "echogym.robotdata")
     for name, path in _modules().items():
         tops = {m.split(".")[0] for m in _imports(name, path)}
         everything |= tops
-        if not name.startswith(APPLICATIONS + COMMAND_LINE) and name not in optional_adapters:
+        if not name.startswith(APPLICATIONS + COMMAND_LINE + optional_adapters):
             library |= tops
     undeclared_library = _distributions(library) - core
     assert not undeclared_library, f"the library imports {undeclared_library}, not core dependencies"

@@ -38,7 +38,11 @@ def load_report(out: str | Path) -> dict[str, Any]:
 def load_replay(out: str | Path, recording: str) -> dict[str, list[float]]:
     """The replay of one recording (a file name from the report's split): a column per
     series, ``t`` [s] and ``fz_measured``/``fz_baseline``/``fz_calibrated`` [N] among them."""
-    with open(Path(out) / "replay" / f"{Path(recording).stem}.csv") as f:
+    # A segment of a file cut at a gap is listed as `file.csv#k`, replayed to `file#k.csv`
+    # (server/src/calibrate/report.rs).
+    file, _, segment = recording.partition("#")
+    stem = Path(file).stem + (f"#{segment}" if segment else "")
+    with open(Path(out) / "replay" / f"{stem}.csv") as f:
         rows = list(csv.DictReader(f))
     return {k: [float(r[k]) for r in rows] for k in rows[0]} if rows else {}
 

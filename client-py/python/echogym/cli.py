@@ -41,6 +41,10 @@ APPS: dict[str, App] = {
     "demo": App("the force-controlled ultrasound sweep demo", "echogym.apps.demo:main"),
     "ultrasound": App("B-mode image figures: press, sites, sweep", "echogym.apps.ultrasound:main"),
     "train": App("PPO training with torchrl (docs/training.md)", "echogym.train.cli:main"),
+    "import": App("robot logs (ROS 2 bags, MCAP, CSV) → a calibration dataset (docs/data.md)",
+                  "echogym.apps.import_logs:main"),
+    "export": App("recorded episodes → a LeRobot dataset, a ROS 2 bag or MCAP (docs/data.md)",
+                  "echogym.apps.export_episodes:main"),
 }
 
 
