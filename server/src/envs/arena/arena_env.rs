@@ -15,6 +15,7 @@ use super::config::{ArenaConfig, TaskConfig};
 use super::observation::{declare_fields, write_fields};
 use super::randomization::Draw;
 use super::recorder::EpisodeRecorder;
+use super::scene_state::{SceneStateSize, write_scene_state};
 use crate::envs::config::{EnvConfigError, parse_config};
 use crate::envs::env::{Env, EnvOutput, Transition};
 use crate::envs::{EnvBuildError, EnvFactory};
@@ -125,6 +126,8 @@ pub struct ArenaEnv<T: Task> {
     rng: Pcg64Mcg,
     recorder: Option<EpisodeRecorder>,
     ultrasound: Option<Ultrasound>,
+    /// Index of `scene_colliders` when `scene_state` is on.
+    scene_field: Option<usize>,
 }
 
 impl<T: Task> ArenaEnv<T> {
@@ -145,23 +148,25 @@ impl<T: Task> ArenaEnv<T> {
                 Ok::<_, String>(EpisodeRecorder::new(&dir, T::Config::ID, r.episodes))
             })
             .transpose()?;
+        let camera_fields: usize = config
+            .cameras
+            .iter()
+            .map(|c| usize::from(c.rgb) + usize::from(c.depth))
+            .sum();
         let ultrasound = match (&config.ultrasound, &config.torso) {
-            (Some(us), Some(torso)) => {
-                let camera_fields: usize = config
-                    .cameras
-                    .iter()
-                    .map(|c| usize::from(c.rgb) + usize::from(c.depth))
-                    .sum();
-                Some(Ultrasound {
-                    imager: Imager::new(us.clone(), torso.size),
-                    image: vec![0; us.rows * us.lines],
-                    stats: ImageStats::default(),
-                    field: config.observations.len() + camera_fields,
-                })
-            }
+            (Some(us), Some(torso)) => Some(Ultrasound {
+                imager: Imager::new(us.clone(), torso.size),
+                image: vec![0; us.rows * us.lines],
+                stats: ImageStats::default(),
+                field: config.observations.len() + camera_fields,
+            }),
             _ => None,
         };
+        let scene_field = config
+            .scene_state
+            .then(|| config.observations.len() + camera_fields + usize::from(ultrasound.is_some()));
         Ok(Self {
+            scene_field,
             pristine: scene.clone(),
             scene,
             controller,
@@ -285,6 +290,9 @@ impl<T: Task> Env for ArenaEnv<T> {
             out.u8_field(us.field).copy_from_slice(&us.image);
             us.write_info(&mut out.info()[T::info_keys().len()..]);
         }
+        if let Some(first) = self.scene_field {
+            write_scene_state(&self.scene, first, out);
+        }
     }
 }
 
@@ -351,6 +359,15 @@ impl<T: Task> EnvFactory for ArenaFactory<T> {
                 Some(0.0),
                 Some(255.0),
             );
+        }
+        if config.scene_state {
+            let size =
+                SceneStateSize::of::<T>(&config).map_err(|message| EnvConfigError::Invalid {
+                    env_id: id.to_owned(),
+                    key: "scene_state",
+                    message,
+                })?;
+            builder = size.declare(builder);
         }
         for key in T::info_keys() {
             builder = builder.info_key(key);

@@ -5,6 +5,7 @@ use echogym_protocol::{DType, EnvSpecBuilder};
 use rapier3d::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::shaded_render::render_shaded;
 use crate::envs::config::EnvConfigError;
 use crate::envs::env::EnvOutput;
 use crate::sim::camera::Camera;
@@ -50,8 +51,9 @@ impl Observation {
     }
 }
 
-/// A camera: one of the seed's views (`front`, `side`, `bird`), the probe-mounted view
-/// (`probe`), or any name with an explicit `eye` and `target`.
+/// A camera: one of the seed's views (`front`, `side`, `bird`), the whole scene
+/// (`overview`), the probe-mounted view (`probe`), or any name with an explicit `eye` and
+/// `target`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraConfig {
@@ -79,6 +81,25 @@ pub struct CameraConfig {
     /// Point looked at [m, world] (custom cameras).
     #[serde(default)]
     pub target: Option<[f64; 3]>,
+    /// Place the camera like this preset view (`front`, `side`, `bird`, `probe`) under
+    /// any name, e.g. a viewing camera beside an observation camera of the same view.
+    #[serde(default)]
+    pub preset: Option<String>,
+    /// `flat` (default: the cheap observation shading) or `smooth` (viewing: key light
+    /// with shadows, smooth skin, part colours; ≈ 2 rays a pixel).
+    #[serde(default)]
+    pub shading: Shading,
+}
+
+/// How a camera shades its RGB image.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Shading {
+    /// Each collider's flat colour under a headlight (the observation default).
+    #[default]
+    Flat,
+    /// Shaded for viewing ([`crate::envs::arena::render_shaded`]).
+    Smooth,
 }
 
 fn default_size() -> usize {
@@ -95,7 +116,7 @@ fn default_fovy() -> f64 {
 pub const CAMERA_FAR: f64 = 10.0;
 
 /// The preset views.
-pub const CAMERA_PRESETS: [&str; 4] = ["front", "side", "bird", "probe"];
+pub const CAMERA_PRESETS: [&str; 5] = ["front", "side", "bird", "probe", "overview"];
 
 impl CameraConfig {
     /// Check sizes and that the camera is placeable.
@@ -124,7 +145,15 @@ impl CameraConfig {
             )));
         }
         let custom = self.eye.is_some() && self.target.is_some();
-        if !custom && !CAMERA_PRESETS.contains(&self.name.as_str()) {
+        if let Some(preset) = &self.preset {
+            if custom || !CAMERA_PRESETS.contains(&preset.as_str()) {
+                return Err(err(format!(
+                    "camera {:?}: preset {preset:?} must be one of {} (and without `eye`/`target`)",
+                    self.name,
+                    CAMERA_PRESETS.join(", ")
+                )));
+            }
+        } else if !custom && !CAMERA_PRESETS.contains(&self.name.as_str()) {
             return Err(err(format!(
                 "camera {:?} is not a preset ({}) and has no `eye` and `target`",
                 self.name,
@@ -132,6 +161,16 @@ impl CameraConfig {
             )));
         }
         Ok(())
+    }
+
+    /// The preset view this camera takes (its `preset`, else its name).
+    pub fn view(&self) -> &str {
+        self.preset.as_deref().unwrap_or(&self.name)
+    }
+
+    /// Whether the camera rides on the probe (and must not see the probe itself).
+    pub fn on_probe(&self) -> bool {
+        self.eye.is_none() && self.view() == "probe"
     }
 
     /// The camera for the scene's current state (`focus`: the torso's or table's centre
@@ -142,7 +181,7 @@ impl CameraConfig {
         if let (Some(eye), Some(target)) = (self.eye, self.target) {
             return Camera::look_at(eye, target, [0.0, 0.0, 1.0], self.fovy, w, h);
         }
-        match self.name.as_str() {
+        match self.view() {
             // Facing the robot across the torso.
             "front" => Camera::look_at(
                 [cx + 0.9, cy, cz + 0.45],
@@ -155,6 +194,15 @@ impl CameraConfig {
             "side" => Camera::look_at(
                 [cx - 0.1, cy - 0.95, cz + 0.4],
                 [cx - 0.1, cy, cz],
+                [0.0, 0.0, 1.0],
+                self.fovy,
+                w,
+                h,
+            ),
+            // The whole arm and the torso, from the front right and above (viewing).
+            "overview" => Camera::look_at(
+                [cx + 0.75, cy - 1.0, cz + 0.75],
+                [cx - 0.3, cy, cz + 0.15],
                 [0.0, 0.0, 1.0],
                 self.fovy,
                 w,
@@ -303,9 +351,27 @@ pub fn write_fields(
     }
     for cam in cameras {
         let camera = cam.camera(scene, focus);
-        let exclude = (cam.name == "probe" && cam.eye.is_none()).then(|| scene.probe_collider());
+        let exclude = cam.on_probe().then(|| scene.probe_collider());
         let colour = |h| collider_colour(scene, h);
-        if cam.rgb && cam.depth {
+        if cam.shading == Shading::Smooth {
+            let (rgb_index, depth_index) = (index, index + usize::from(cam.rgb));
+            index += usize::from(cam.rgb) + usize::from(cam.depth);
+            let mut depth = cam.depth.then(|| vec![0.0f32; cam.width * cam.height]);
+            if cam.rgb {
+                render_shaded(
+                    &camera,
+                    scene,
+                    exclude,
+                    depth.as_deref_mut(),
+                    Some(out.u8_field(rgb_index)),
+                );
+            } else {
+                render_shaded(&camera, scene, exclude, depth.as_deref_mut(), None);
+            }
+            if let Some(depth) = depth {
+                out.f32_field(depth_index).copy_from_slice(&depth);
+            }
+        } else if cam.rgb && cam.depth {
             let (rgb_index, depth_index) = (index, index + 1);
             index += 2;
             let mut depth = vec![0.0f32; cam.width * cam.height];

@@ -1,0 +1,336 @@
+//! The scene's state for viewers (`scene_state = true`): every collider's shape, part,
+//! colour and world pose, the torso's deforming surface mesh with its indentation, and
+//! the probe's contact point and force.
+//!
+//! Four fixed-size float32 fields follow every other field, so a viewer in Python (the
+//! rerun logger, the video renderer) sees the same scene as the physics without a second
+//! channel: shapes and topology are small enough to ride along every step (≈ 30 KB for
+//! the default torso), which keeps the samples self-describing and lets any step be
+//! drawn on its own. Off (the default) nothing is declared, written or computed.
+//!
+//! `scene_colliders` `[colliders, 15]`, one row per collider:
+//! `[kind, part, r, g, b, d0, d1, d2, px, py, pz, qx, qy, qz, qw]` — `kind` (see
+//! [`ShapeKind`]), `part` (see [`Part`]), the base colour (0–1), the shape's dimensions
+//! and its world pose (m; quaternion `x, y, z, w`). Capsules and cylinders are posed with
+//! their axis along the pose's z. Unused rows have kind and part −1.
+//!
+//! `torso_vertices` `[vertices, 4]`: the surface vertices (m, world) and their
+//! indentation (m; positive pressed in); `torso_triangles` `[triangles, 3]`: vertex
+//! indices (exact in float32). Sized for the largest torso the randomization can draw;
+//! unused vertices are NaN and unused triangles −1.
+//!
+//! `scene_contact` `[8]`: the contact point (m, world: the skin's centre of pressure on
+//! the probe face, else the face centre), the contact force on the probe (N, world,
+//! noise-free), 1 while in contact, the axial force (N, positive pressing).
+
+use echogym_protocol::EnvSpecBuilder;
+use rapier3d::prelude::*;
+
+use super::arena_env::Task;
+use super::config::ArenaConfig;
+use crate::envs::env::EnvOutput;
+use crate::sim::scene::Scene;
+use crate::sim::torso::ShellLayout;
+use crate::sim::world::{arr3, vec3};
+
+/// Columns of a `scene_colliders` row.
+pub const COLLIDER_COLUMNS: usize = 15;
+/// Columns of a `torso_vertices` row.
+pub const VERTEX_COLUMNS: usize = 4;
+/// Length of `scene_contact`.
+pub const CONTACT_LEN: usize = 8;
+/// The field names, in order.
+pub const SCENE_FIELDS: [&str; 4] = [
+    "scene_colliders",
+    "torso_vertices",
+    "torso_triangles",
+    "scene_contact",
+];
+
+/// Shape codes of `scene_colliders[:, 0]`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ShapeKind {
+    /// Half extents `d0, d1, d2`.
+    Box = 0,
+    /// Radius `d0`, half length of the axis segment `d1` (axis: the pose's z).
+    Capsule = 1,
+    /// Radius `d0`.
+    Sphere = 2,
+    /// Radius `d0`, half height `d1` (axis: the pose's z).
+    Cylinder = 3,
+    /// The torso's surface: `torso_vertices` and `torso_triangles`.
+    TorsoMesh = 4,
+}
+
+/// What a collider belongs to (`scene_colliders[:, 1]`): 0 the table, 1 the torso, 2 the
+/// probe, 3 a loose object (the cube), `4 + k` arm link `k` (from the base).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Part {
+    /// The table.
+    Table,
+    /// The soft torso.
+    Torso,
+    /// The probe.
+    Probe,
+    /// A loose rigid object (PushCube's cube).
+    Object,
+    /// Arm link `k`, counted from the base.
+    Link(usize),
+}
+
+impl Part {
+    /// The part of collider `handle`.
+    pub fn of(scene: &Scene, handle: ColliderHandle) -> Self {
+        let s = &scene.world().sets;
+        if handle == scene.world().table() {
+            return Self::Table;
+        }
+        if Some(handle) == scene.torso_collider() {
+            return Self::Torso;
+        }
+        if handle == scene.probe_collider() {
+            return Self::Probe;
+        }
+        let parent = s.colliders.get(handle).and_then(|c| c.parent());
+        match parent.and_then(|b| scene.arm().links().iter().position(|&l| l == b)) {
+            Some(k) => Self::Link(k),
+            None => Self::Object,
+        }
+    }
+
+    /// The code written in `scene_colliders`.
+    pub fn code(self) -> f32 {
+        match self {
+            Self::Table => 0.0,
+            Self::Torso => 1.0,
+            Self::Probe => 2.0,
+            Self::Object => 3.0,
+            Self::Link(k) => 4.0 + k as f32,
+        }
+    }
+
+    /// Base colour for viewing (linear RGB, 0–1): a wooden table, skin, a blue probe, a
+    /// red object, and arm links alternating light and dark so the joints read.
+    pub fn colour(self) -> [f32; 3] {
+        match self {
+            Self::Table => [0.55, 0.42, 0.30],
+            Self::Torso => [0.93, 0.71, 0.60],
+            Self::Probe => [0.12, 0.32, 0.75],
+            Self::Object => [0.80, 0.15, 0.15],
+            Self::Link(k) if k % 2 == 0 => [0.30, 0.32, 0.36],
+            Self::Link(_) => [0.80, 0.82, 0.86],
+        }
+    }
+}
+
+/// The sizes of the scene-state fields of one env config.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SceneStateSize {
+    /// Rows of `scene_colliders`.
+    pub colliders: usize,
+    /// Rows of `torso_vertices` (0 without a torso).
+    pub vertices: usize,
+    /// Rows of `torso_triangles` (0 without a torso).
+    pub triangles: usize,
+}
+
+impl SceneStateSize {
+    /// Build the env's scene once to count its colliders; size the torso mesh for the
+    /// largest torso the randomization can draw.
+    pub fn of<T: Task>(config: &ArenaConfig<T::Config>) -> Result<Self, String> {
+        let mut scene = Scene::new(config.scene_params()).map_err(|e| e.to_string())?;
+        T::new(config, &mut scene);
+        let colliders = scene.world().sets.colliders.len();
+        let (mut vertices, mut triangles) = (0, 0);
+        if let Some(t) = &config.torso {
+            let largest = config.randomization.torso_scale[1].max(1.0);
+            for scale in [1.0, largest] {
+                let size = [t.size[0] * scale, t.size[1] * scale, t.size[2]];
+                let layout = ShellLayout::new(size, t.center_xy, t.bottom_z, t.spacing);
+                let (v, tr) = layout.surface_size();
+                vertices = vertices.max(v);
+                triangles = triangles.max(tr);
+            }
+        }
+        Ok(Self {
+            colliders,
+            vertices,
+            triangles,
+        })
+    }
+
+    /// Declare the four fields.
+    pub fn declare(&self, builder: EnvSpecBuilder) -> EnvSpecBuilder {
+        builder
+            .f32_field(SCENE_FIELDS[0], &[self.colliders, COLLIDER_COLUMNS])
+            .f32_field(SCENE_FIELDS[1], &[self.vertices, VERTEX_COLUMNS])
+            .f32_field(SCENE_FIELDS[2], &[self.triangles, 3])
+            .f32_field(SCENE_FIELDS[3], &[CONTACT_LEN])
+    }
+}
+
+/// Write the four fields, `first` being the index of `scene_colliders`.
+pub fn write_scene_state(scene: &Scene, first: usize, out: &mut EnvOutput<'_>) {
+    write_colliders(scene, out.f32_field(first));
+    let torso = scene.torso();
+    let vertices = out.f32_field(first + 1);
+    vertices.fill(f32::NAN);
+    if let Some(torso) = torso {
+        let top = torso.params().top_z();
+        let layout = torso.layout();
+        let u = torso.displacements();
+        let rows = vertices.chunks_exact_mut(VERTEX_COLUMNS);
+        for (i, (row, p)) in rows.zip(torso.surface_vertices()).enumerate() {
+            let indentation = if i < layout.top_len() {
+                top - p[2]
+            } else if i < layout.len() {
+                -u[i]
+            } else {
+                0.0
+            };
+            row.copy_from_slice(&[p[0] as f32, p[1] as f32, p[2] as f32, indentation as f32]);
+        }
+    }
+    let triangles = out.f32_field(first + 2);
+    triangles.fill(-1.0);
+    if let Some(torso) = torso {
+        for (row, t) in triangles.chunks_exact_mut(3).zip(torso.surface_triangles()) {
+            row.copy_from_slice(&t.map(|v| v as f32));
+        }
+    }
+    let point = contact_point(scene);
+    let f = scene.contact_force();
+    let contact = out.f32_field(first + 3);
+    let values = [
+        point[0],
+        point[1],
+        point[2],
+        f[0],
+        f[1],
+        f[2],
+        f64::from(u8::from(scene.in_contact())),
+        scene.axial_contact_force(),
+    ];
+    for (d, s) in contact.iter_mut().zip(values) {
+        *d = s as f32;
+    }
+}
+
+fn write_colliders(scene: &Scene, field: &mut [f32]) {
+    field.fill(0.0);
+    let mut rows = field.chunks_exact_mut(COLLIDER_COLUMNS);
+    for (handle, collider) in scene.world().sets.colliders.iter() {
+        let Some(row) = rows.next() else {
+            return;
+        };
+        let part = Part::of(scene, handle);
+        let (kind, dims, local) = shape_of(collider.shape());
+        let (dims, pose) = match kind {
+            Some(kind) => (dims, (*collider.position() * local, kind as i32 as f32)),
+            // Anything else is drawn as its world bounding box.
+            None => {
+                let aabb = collider.compute_aabb();
+                let centre = (aabb.mins + aabb.maxs) * 0.5;
+                let half = (aabb.maxs - aabb.mins) * 0.5;
+                (
+                    [half.x as f32, half.y as f32, half.z as f32],
+                    (Pose::from_translation(centre), ShapeKind::Box as i32 as f32),
+                )
+            }
+        };
+        let (pose, kind) = pose;
+        let (t, q) = (pose.translation, pose.rotation);
+        let colour = part.colour();
+        row.copy_from_slice(&[
+            kind,
+            part.code(),
+            colour[0],
+            colour[1],
+            colour[2],
+            dims[0],
+            dims[1],
+            dims[2],
+            t.x as f32,
+            t.y as f32,
+            t.z as f32,
+            q.x as f32,
+            q.y as f32,
+            q.z as f32,
+            q.w as f32,
+        ]);
+    }
+    for row in rows {
+        row[0] = -1.0;
+        row[1] = -1.0;
+    }
+}
+
+/// The kind, dimensions and pose in the collider's frame of a shape (`None`: not one of
+/// the [`ShapeKind`]s).
+fn shape_of(shape: &dyn Shape) -> (Option<ShapeKind>, [f32; 3], Pose) {
+    if let Some(b) = shape.as_cuboid() {
+        let h = b.half_extents;
+        return (
+            Some(ShapeKind::Box),
+            [h.x as f32, h.y as f32, h.z as f32],
+            Pose::IDENTITY,
+        );
+    }
+    if let Some(c) = shape.as_capsule() {
+        let (a, b) = (c.segment.a, c.segment.b);
+        let axis = b - a;
+        let half = axis.length() * 0.5;
+        let rotation = if half > 0.0 {
+            Rotation::from_rotation_arc(Vector::Z, axis / (2.0 * half))
+        } else {
+            Rotation::IDENTITY
+        };
+        return (
+            Some(ShapeKind::Capsule),
+            [c.radius as f32, half as f32, 0.0],
+            Pose::from_parts((a + b) * 0.5, rotation),
+        );
+    }
+    if let Some(s) = shape.as_ball() {
+        return (
+            Some(ShapeKind::Sphere),
+            [s.radius as f32, 0.0, 0.0],
+            Pose::IDENTITY,
+        );
+    }
+    if let Some(c) = shape.as_cylinder() {
+        return (
+            Some(ShapeKind::Cylinder),
+            [c.radius as f32, c.half_height as f32, 0.0],
+            Pose::from_rotation(Rotation::from_rotation_arc(Vector::Z, Vector::Y)),
+        );
+    }
+    if shape.as_trimesh().is_some() {
+        return (Some(ShapeKind::TorsoMesh), [0.0; 3], Pose::IDENTITY);
+    }
+    (None, [0.0; 3], Pose::IDENTITY)
+}
+
+/// Where the probe touches: the skin's centre of pressure on the face plane, else the
+/// face centre [m, world].
+fn contact_point(scene: &Scene) -> [f64; 3] {
+    let tip = scene.tip_pose();
+    let centre = arr3(tip.translation);
+    let wrench = scene.torso_wrench();
+    let f = vec3(wrench.force);
+    let f2 = f.length_squared();
+    if !wrench.in_contact() || f2 < 1e-12 {
+        return centre;
+    }
+    // The wrench's line of action (torque about the probe link's centre of mass), cut
+    // with the face plane.
+    let com = scene.world().sets.bodies[scene.arm().last_link()].center_of_mass();
+    let on_line = com + f.cross(vec3(wrench.torque)) / f2;
+    let axis = tip.rotation * Vector::Z;
+    let along = f.dot(axis);
+    if along.abs() < 1e-9 {
+        return centre;
+    }
+    let s = (tip.translation - on_line).dot(axis) / along;
+    arr3(on_line + f * s)
+}
