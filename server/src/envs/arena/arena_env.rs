@@ -12,7 +12,7 @@ use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
 
 use super::config::{ArenaConfig, TaskConfig};
-use super::observation::{declare_fields, write_fields};
+use super::observation::{HeldFrames, declare_fields, held_frames, write_fields};
 use super::randomization::Draw;
 use super::recorder::EpisodeRecorder;
 use super::scene_state::{SceneStateSize, write_scene_state};
@@ -128,6 +128,9 @@ pub struct ArenaEnv<T: Task> {
     ultrasound: Option<Ultrasound>,
     /// Index of `scene_colliders` when `scene_state` is on.
     scene_field: Option<usize>,
+    /// Steps since the reset (cameras with `every > 1` render on its multiples).
+    frame: u64,
+    held: HeldFrames,
 }
 
 impl<T: Task> ArenaEnv<T> {
@@ -167,6 +170,8 @@ impl<T: Task> ArenaEnv<T> {
             .then(|| config.observations.len() + camera_fields + usize::from(ultrasound.is_some()));
         Ok(Self {
             scene_field,
+            frame: 0,
+            held: held_frames(&config.cameras),
             pristine: scene.clone(),
             scene,
             controller,
@@ -237,6 +242,7 @@ impl<T: Task> Env for ArenaEnv<T> {
             self.rng = Pcg64Mcg::seed_from_u64(seed);
         }
         self.randomize();
+        self.frame = 0;
         self.task
             .reset(&self.config, &mut self.scene, &mut self.rng);
         self.controller = ArmController::new(self.config.controller.clone(), &self.scene);
@@ -255,6 +261,7 @@ impl<T: Task> Env for ArenaEnv<T> {
     }
 
     fn step(&mut self, action: &[f32], out: &mut EnvOutput<'_>) -> Transition {
+        self.frame += 1;
         let action: Vec<f64> = action.iter().map(|&a| f64::from(a)).collect();
         let action = self.task.action(&self.scene, &action);
         let (task, recorder) = (&mut self.task, &mut self.recorder);
@@ -284,6 +291,8 @@ impl<T: Task> Env for ArenaEnv<T> {
             &self.config.cameras,
             focus,
             &errors,
+            self.frame,
+            &self.held,
             out,
         );
         if let Some(us) = &self.ultrasound {

@@ -89,6 +89,14 @@ pub struct CameraConfig {
     /// with shadows, smooth skin, part colours; ≈ 2 rays a pixel).
     #[serde(default)]
     pub shading: Shading,
+    /// Render every `every`-th step since the reset and repeat the frame between
+    /// (a 25 frames/s video of a 500 Hz env: 20). Default 1.
+    #[serde(default = "default_every")]
+    pub every: u64,
+}
+
+fn default_every() -> u64 {
+    1
 }
 
 /// How a camera shades its RGB image.
@@ -135,6 +143,12 @@ impl CameraConfig {
         if !(self.rgb || self.depth) {
             return Err(err(format!(
                 "camera {:?}: enable rgb, depth or both",
+                self.name
+            )));
+        }
+        if !(1..=1_000_000).contains(&self.every) {
+            return Err(err(format!(
+                "camera {:?}: every must be in [1, 1000000] steps",
                 self.name
             )));
         }
@@ -295,13 +309,17 @@ pub fn declare_fields(
 }
 
 /// Write the observation fields (in spec order, starting at field 0); `task_errors`
-/// holds the task's errors. Cameras see the torso's collider as last synced.
+/// holds the task's errors. Cameras see the torso's collider as last synced; `frame` is
+/// the step since the reset (a camera renders when it is a multiple of its `every`).
+#[allow(clippy::too_many_arguments)]
 pub fn write_fields(
     scene: &Scene,
     observations: &[Observation],
     cameras: &[CameraConfig],
     focus: [f64; 3],
     task_errors: &[f32],
+    frame: u64,
+    held: &HeldFrames,
     out: &mut EnvOutput<'_>,
 ) {
     let mut index = 0;
@@ -346,62 +364,99 @@ pub fn write_fields(
             Observation::TaskErrors => field.copy_from_slice(task_errors),
         }
     }
-    if cameras.is_empty() {
-        return;
-    }
-    for cam in cameras {
-        let camera = cam.camera(scene, focus);
-        let exclude = cam.on_probe().then(|| scene.probe_collider());
-        let colour = |h| collider_colour(scene, h);
-        if cam.shading == Shading::Smooth {
-            let (rgb_index, depth_index) = (index, index + usize::from(cam.rgb));
-            index += usize::from(cam.rgb) + usize::from(cam.depth);
-            let mut depth = cam.depth.then(|| vec![0.0f32; cam.width * cam.height]);
-            if cam.rgb {
-                render_shaded(
-                    &camera,
-                    scene,
-                    exclude,
-                    depth.as_deref_mut(),
-                    Some(out.u8_field(rgb_index)),
-                );
-            } else {
-                render_shaded(&camera, scene, exclude, depth.as_deref_mut(), None);
-            }
-            if let Some(depth) = depth {
-                out.f32_field(depth_index).copy_from_slice(&depth);
-            }
-        } else if cam.rgb && cam.depth {
-            let (rgb_index, depth_index) = (index, index + 1);
-            index += 2;
-            let mut depth = vec![0.0f32; cam.width * cam.height];
-            camera.render(
-                scene.world(),
-                exclude,
-                &colour,
-                Some(&mut depth),
-                Some(out.u8_field(rgb_index)),
-            );
-            out.f32_field(depth_index).copy_from_slice(&depth);
-        } else if cam.rgb {
-            camera.render(
-                scene.world(),
-                exclude,
-                &colour,
-                None,
-                Some(out.u8_field(index)),
-            );
-            index += 1;
-        } else {
-            camera.render(
-                scene.world(),
-                exclude,
-                &colour,
-                Some(out.f32_field(index)),
-                None,
-            );
-            index += 1;
+    for (c, cam) in cameras.iter().enumerate() {
+        let rgb_index = cam.rgb.then_some(index);
+        let depth_index = cam.depth.then_some(index + usize::from(cam.rgb));
+        index += usize::from(cam.rgb) + usize::from(cam.depth);
+        let fresh = frame % cam.every.max(1) == 0;
+        if fresh {
+            render_camera(scene, cam, focus, rgb_index, depth_index, out);
         }
+        if cam.every > 1 {
+            // Between renders the camera repeats its last frame (the record is reused
+            // across steps only sometimes, so the frame is kept here).
+            let mut held = held.lock().unwrap_or_else(|e| e.into_inner());
+            let slot = &mut held[c];
+            if let Some(i) = rgb_index {
+                if fresh {
+                    slot.rgb.clear();
+                    slot.rgb.extend_from_slice(out.u8_field(i));
+                } else if slot.rgb.len() == out.u8_field(i).len() {
+                    out.u8_field(i).copy_from_slice(&slot.rgb);
+                }
+            }
+            if let Some(i) = depth_index {
+                if fresh {
+                    slot.depth.clear();
+                    slot.depth.extend_from_slice(out.f32_field(i));
+                } else if slot.depth.len() == out.f32_field(i).len() {
+                    out.f32_field(i).copy_from_slice(&slot.depth);
+                }
+            }
+        }
+    }
+}
+
+/// The last rendered frame of a camera with `every > 1`.
+#[derive(Debug, Clone, Default)]
+pub struct HeldFrame {
+    rgb: Vec<u8>,
+    depth: Vec<f32>,
+}
+
+/// Held frames, one per camera (see [`CameraConfig::every`]).
+pub type HeldFrames = std::sync::Mutex<Vec<HeldFrame>>;
+
+/// Held frames for `cameras`, empty until their first render.
+pub fn held_frames(cameras: &[CameraConfig]) -> HeldFrames {
+    std::sync::Mutex::new(vec![HeldFrame::default(); cameras.len()])
+}
+
+/// Render one camera into its fields.
+fn render_camera(
+    scene: &Scene,
+    cam: &CameraConfig,
+    focus: [f64; 3],
+    rgb_index: Option<usize>,
+    depth_index: Option<usize>,
+    out: &mut EnvOutput<'_>,
+) {
+    let camera = cam.camera(scene, focus);
+    let exclude = cam.on_probe().then(|| scene.probe_collider());
+    let colour = |h| collider_colour(scene, h);
+    // Depth goes through a scratch buffer when both are wanted (two fields of `out`
+    // cannot be borrowed at once).
+    let mut depth = (rgb_index.is_some() && depth_index.is_some())
+        .then(|| vec![0.0f32; cam.width * cam.height]);
+    match (rgb_index, depth_index, cam.shading) {
+        (Some(r), _, Shading::Smooth) => render_shaded(
+            &camera,
+            scene,
+            exclude,
+            depth.as_deref_mut(),
+            Some(out.u8_field(r)),
+        ),
+        (None, Some(d), Shading::Smooth) => {
+            render_shaded(&camera, scene, exclude, Some(out.f32_field(d)), None)
+        }
+        (Some(r), _, Shading::Flat) => camera.render(
+            scene.world(),
+            exclude,
+            &colour,
+            depth.as_deref_mut(),
+            Some(out.u8_field(r)),
+        ),
+        (None, Some(d), Shading::Flat) => camera.render(
+            scene.world(),
+            exclude,
+            &colour,
+            Some(out.f32_field(d)),
+            None,
+        ),
+        (None, None, _) => {}
+    }
+    if let (Some(d), Some(depth)) = (depth_index, depth) {
+        out.f32_field(d).copy_from_slice(&depth);
     }
 }
 

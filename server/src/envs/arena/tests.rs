@@ -538,3 +538,19 @@ fn smooth_shading_renders_a_different_image_with_a_sky() {
     let err = factory.spec(&map(bad)).unwrap_err().to_string();
     assert!(err.contains("cameras") && err.contains("nowhere"), "{err}");
 }
+
+#[test]
+fn a_camera_with_every_holds_its_frame_between_renders() {
+    let config = serde_json::json!({
+        "cameras": [{"name": "probe", "width": 24, "height": 16, "rgb": false, "every": 3}],
+    });
+    let (spec, _) = make("echogym/UltrasoundScan-v0", config.clone());
+    let trace = rollout("echogym/UltrasoundScan-v0", config, 5, 7);
+    let depth = |k: usize| f32_field(&spec, &trace[k].0, "probe_depth").to_vec();
+    // Rendered at steps 0, 3, 6; held at 1, 2, 4, 5 (the probe moves every step).
+    assert_eq!(depth(1), depth(0));
+    assert_eq!(depth(2), depth(0));
+    assert_ne!(depth(3), depth(0));
+    assert_eq!(depth(5), depth(3));
+    assert_ne!(depth(6), depth(3));
+}
