@@ -16,8 +16,10 @@
 //!
 //! `torso_vertices` `[vertices, 4]`: the surface vertices (m, world) and their
 //! indentation (m; positive pressed in); `torso_triangles` `[triangles, 3]`: vertex
-//! indices (exact in float32). Sized for the largest torso the randomization can draw;
-//! unused vertices are NaN and unused triangles −1.
+//! indices (exact in float32). Sized for the largest torso the randomization can draw:
+//! the vertices in use are the first `max index + 1` (every one is in a triangle), the
+//! rows after them are 0, unused triangles −1 (finite fill: the fields stay inside
+//! their observation space).
 //!
 //! `scene_contact` `[8]`: the contact point (m, world: the skin's centre of pressure on
 //! the probe face, else the face centre), the contact force on the probe (N, world,
@@ -174,7 +176,7 @@ pub fn write_scene_state(scene: &Scene, first: usize, out: &mut EnvOutput<'_>) {
     write_colliders(scene, out.f32_field(first));
     let torso = scene.torso();
     let vertices = out.f32_field(first + 1);
-    vertices.fill(f32::NAN);
+    vertices.fill(0.0);
     if let Some(torso) = torso {
         let top = torso.params().top_z();
         let layout = torso.layout();
