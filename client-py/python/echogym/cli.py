@@ -3,7 +3,7 @@
 The Rust CLI (``serve``, ``status``, ``stop``, ``envs``, ``calibrate``; linked into the
 native module, the same code as the ``echogym`` binary) receives every command line with
 its arguments unchanged, except the Python applications of :data:`APPS` (``demo``,
-``ultrasound``, ``train``), which get the arguments after their name. After a Rust
+``ultrasound``, ``train``, ``view``), which get the arguments after their name. After a Rust
 command succeeds, the step :data:`AFTER` names for it runs on the arguments argparse read
 (``calibrate DATASET --out OUT`` / ``--out=OUT``: the report's plots). ``echogym --help``
 and ``echogym help`` print the Rust help, then the Python commands; ``echogym help demo``
@@ -41,6 +41,7 @@ APPS: dict[str, App] = {
     "demo": App("the force-controlled ultrasound sweep demo", "echogym.apps.demo:main"),
     "ultrasound": App("B-mode image figures: press, sites, sweep", "echogym.apps.ultrasound:main"),
     "train": App("PPO training with torchrl (docs/training.md)", "echogym.train.cli:main"),
+    "view": App("watch envs in the rerun viewer, live or saved to .rrd", "echogym.apps.view:main"),
 }
 
 
