@@ -7,8 +7,10 @@ Everything lands on two timelines, ``step`` (env steps since the logger started)
   (their real collision shapes, posed every step), the torso's deforming surface as a mesh
   coloured by indentation (skin → blue at 1 cm), the contact point and the contact force
   on the probe as an arrow (1 cm per N). Envs sit side by side, ``spacing`` metres apart.
-* ``env_i/ft/{fx,fy,fz,tx,ty,tz}``, ``env_i/force/{axial,target}``, ``env_i/reward/
-  {total,<term>}``, ``env_i/joints/q<k>``, ``env_i/info/<key>`` — time series.
+* ``env_i/ft`` (lines ``fx fy fz tx ty tz``), ``env_i/force`` (``axial``, ``target``),
+  ``env_i/reward`` (``total`` and each term), ``env_i/joints`` (``q0``...),
+  ``env_i/info`` (the other info values) — time series, one entity per plot with a named
+  line per value.
 * ``env_i/cameras/<name>`` (RGB and depth), ``env_i/ultrasound`` — images.
 * ``env_i/events`` — episode ends.
 
@@ -101,7 +103,8 @@ class RerunLogger:
         self.step = 0
         self._episodes = np.zeros(num_envs, dtype=np.int64)
         self._static_logged = False
-        self._entities: list[tuple[str, int]] | None = None
+        self._named: set[str] = set()
+        self._triangles: dict[int, np.ndarray] = {}
 
     # --- public -------------------------------------------------------------------------
 
@@ -166,9 +169,15 @@ class RerunLogger:
         if len(scene.torso_vertices):
             t = np.clip(scene.torso_indentation / _FULL_INDENTATION, 0.0, 1.0)[:, None]
             colours = ((_SKIN * (1 - t) + _PRESSED * t) ** (1 / 2.2) * 255).astype(np.uint8)
-            rec.log(f"{root}/torso", rr.Mesh3D(
+            # The topology changes only with a reshaped torso (a new episode's draw): log the
+            # triangles then, the vertices every time (the viewer joins the latest of each).
+            last = self._triangles.get(i)
+            fresh = last is None or not np.array_equal(last, scene.torso_triangles)
+            if fresh:
+                self._triangles[i] = scene.torso_triangles
+            rec.log(f"{root}/torso", rr.Mesh3D.from_fields(
                 vertex_positions=scene.torso_vertices,
-                triangle_indices=scene.torso_triangles,
+                triangle_indices=scene.torso_triangles if fresh else None,
                 vertex_normals=scene.torso_normals(),
                 vertex_colors=colours,
             ))
@@ -198,31 +207,34 @@ class RerunLogger:
             return rr.Cylinders3D(lengths=[2 * h], radii=[r], colors=[colour], fill_mode="solid")
         return rr.Boxes3D(half_sizes=[c.dims], colors=[colour], fill_mode="solid")
 
-    def _scalar(self, path: str, value: float) -> None:
-        self.recording.log(path, self._rr.Scalars(float(value)))
+    def _series(self, path: str, names: list[str], values: Any) -> None:
+        """One time-series entity with a named line per value (one log call for all)."""
+        if path not in self._named:
+            self._named.add(path)
+            self.recording.log(path, self._rr.SeriesLines(names=names), static=True)
+        self.recording.log(path, self._rr.Scalars(np.asarray(values, dtype=np.float64)))
 
     def _log_series(self, i: int, one: Mapping[str, np.ndarray], reward: np.ndarray | None,
                     infos: Mapping[str, Any]) -> None:
         if "ft" in one:
-            for name, value in zip(_FT, one["ft"]):
-                self._scalar(f"env_{i}/ft/{name}", value)
+            self._series(f"env_{i}/ft", list(_FT), one["ft"])
         if "scene_contact" in one:
-            self._scalar(f"env_{i}/force/axial", one["scene_contact"][7])
-        if self.target_force is not None:
-            self._scalar(f"env_{i}/force/target", self.target_force)
+            names, values = ["axial"], [one["scene_contact"][7]]
+            if self.target_force is not None:
+                names.append("target")
+                values.append(self.target_force)
+            self._series(f"env_{i}/force", names, values)
         if "joint_pos" in one:
-            for k, q in enumerate(one["joint_pos"]):
-                self._scalar(f"env_{i}/joints/q{k}", q)
+            q = one["joint_pos"]
+            self._series(f"env_{i}/joints", [f"q{k}" for k in range(len(q))], q)
+        keys = [k for k in infos if not k.startswith("_") and k not in ("final_obs", "final_info")]
+        terms = [k for k in keys if k.startswith("reward_")]
         if reward is not None:
-            self._scalar(f"env_{i}/reward/total", reward[i])
-        for key, values in infos.items():
-            if key.startswith("_") or key in ("final_obs", "final_info"):
-                continue
-            value = np.asarray(values)[i]
-            if key.startswith("reward_"):
-                self._scalar(f"env_{i}/reward/{key[len('reward_'):]}", value)
-            else:
-                self._scalar(f"env_{i}/info/{key}", value)
+            self._series(f"env_{i}/reward", ["total", *(k[len("reward_"):] for k in terms)],
+                         [reward[i], *(np.asarray(infos[k])[i] for k in terms)])
+        others = [k for k in keys if k not in terms]
+        if others:
+            self._series(f"env_{i}/info", others, [np.asarray(infos[k])[i] for k in others])
 
     def _log_images(self, i: int, one: Mapping[str, np.ndarray]) -> None:
         rr, rec = self._rr, self.recording

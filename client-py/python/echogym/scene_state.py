@@ -104,7 +104,8 @@ class SceneState:
         normals = np.zeros_like(v)
         if len(t):
             face = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]])
-            for k in range(3):
-                np.add.at(normals, t[:, k], face)
+            corners = t.reshape(-1)
+            for axis in range(3):
+                normals[:, axis] = np.bincount(corners, np.repeat(face[:, axis], 3), minlength=len(v))
         length = np.linalg.norm(normals, axis=1, keepdims=True)
         return (normals / np.where(length > 0, length, 1.0)).astype(np.float32)
