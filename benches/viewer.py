@@ -14,6 +14,9 @@ like `benches/run envs`. UltrasoundScan-v0, Panda, OSC_POSE at 500 Hz, 8 envs:
   (f) the same with `render_camera={"every": 20}` (a 25 frames/s video).
 Cost of one camera frame (1 env; step time with the camera minus without): 64×64 and
 256×256, flat (observation) and smooth (viewing) shading.
+`--baseline-bin PATH`: also (a) against another build of the server (e.g. the main
+branch's, without the viewer), alternating fresh servers of both builds, so "logging off
+costs nothing" is measured rather than argued.
 Each figure is the median of `--repeats` runs of `--seconds`. Prints a markdown table,
 writes benches/results/viewer.{md,json}, and ends with one `RESULT key=value ...` line.
 """
@@ -78,6 +81,22 @@ def steps_per_s(server: str, num_envs: int, config: dict, seconds: float,
     return steps * num_envs / elapsed
 
 
+def off_with_binary(binary: str | None, name: str, seconds: float) -> float:
+    """Plain stepping against a fresh server of `binary` (None: this checkout's)."""
+    previous = os.environ.get("ECHOGYM_BIN")
+    if binary:
+        os.environ["ECHOGYM_BIN"] = binary
+    try:
+        with BenchServer(name, "--threads", "1") as server:
+            pin_process(server.process.pid, SERVER_CPU)
+            return steps_per_s(server.name, NUM_ENVS, {}, seconds)
+    finally:
+        if previous is None:
+            os.environ.pop("ECHOGYM_BIN", None)
+        else:
+            os.environ["ECHOGYM_BIN"] = previous
+
+
 WORKLOADS = {
     "off": ("plain stepping (logging off)", {}, None),
     "scene_state": ("`scene_state=True` (fields only)", {"scene_state": True}, None),
@@ -99,6 +118,8 @@ def main() -> None:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--baseline-bin", default=None,
+                        help="an `echogym` binary to compare plain stepping against")
     args = parser.parse_args()
     os.sched_setaffinity(0, {CLIENT_CPU})
     runs: dict[str, list[float]] = {name: [] for name in [*WORKLOADS, "one_env", *CAMERAS]}
@@ -113,6 +134,14 @@ def main() -> None:
             for name, camera in CAMERAS.items():
                 runs[name].append(steps_per_s(server.name, 1, {"cameras": [camera]}, args.seconds))
                 print(f"camera {name}: {runs[name][-1]:,.0f} steps/s", file=sys.stderr)
+    # After the shared server is gone: each run starts its own (one ipc location).
+    if args.baseline_bin:
+        runs["off_this_build"], runs["off_baseline"] = [], []
+        for r in range(args.repeats):
+            for key, binary in (("off_baseline", args.baseline_bin),
+                                ("off_this_build", os.environ.get("ECHOGYM_BIN"))):
+                runs[key].append(off_with_binary(binary, f"viewer-ab{r}{key}", args.seconds))
+                print(f"{key}: {runs[key][-1]:,.0f} env-steps/s", file=sys.stderr)
     os.sched_setaffinity(0, set(range(os.cpu_count() or 1)))
     med = {k: statistics.median(v) for k, v in runs.items()}
     lines = [
@@ -126,6 +155,13 @@ def main() -> None:
     for name, (label, _, _) in WORKLOADS.items():
         lines.append(f"| {label} | {med[name]:,.0f} | {med[name] / med['off']:.2f}× | "
                      f"{', '.join(f'{r:,.0f}' for r in runs[name])} |")
+    if args.baseline_bin:
+        lines.append(f"| plain stepping, this build (fresh servers, alternating) | "
+                     f"{med['off_this_build']:,.0f} | {med['off_this_build'] / med['off_baseline']:.2f}× "
+                     f"baseline | {', '.join(f'{r:,.0f}' for r in runs['off_this_build'])} |")
+        lines.append(f"| plain stepping, baseline build `{args.baseline_bin}` | "
+                     f"{med['off_baseline']:,.0f} | 1.00× baseline | "
+                     f"{', '.join(f'{r:,.0f}' for r in runs['off_baseline'])} |")
     base_ms = 1e3 / med["one_env"]
     frame_ms = {name: max(0.0, 1e3 / med[name] - base_ms) for name in CAMERAS}
     lines += ["", "| camera frame (1 env) | ms per frame |", "|---|---:|"]

@@ -123,7 +123,7 @@ class EchoVectorEnv(VectorEnv):
             mask = np.asarray(options["reset_mask"], dtype=bool)
             if mask.shape != (self.num_envs,):
                 raise ValueError(f"reset_mask must have shape ({self.num_envs},)")
-        fields, reward, terminated, truncated, info, _, _ = self._lease.reset(mask, seeds)
+        fields, _, _, _, info, _, _ = self._lease.reset(mask, seeds)
         self._fields = fields
         if self._logger is not None:
             self._logger.log_reset(self.fields(), self._infos(info), mask)

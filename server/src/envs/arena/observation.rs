@@ -368,7 +368,7 @@ pub fn write_fields(
         let rgb_index = cam.rgb.then_some(index);
         let depth_index = cam.depth.then_some(index + usize::from(cam.rgb));
         index += usize::from(cam.rgb) + usize::from(cam.depth);
-        let fresh = frame % cam.every.max(1) == 0;
+        let fresh = frame.is_multiple_of(cam.every.max(1));
         if fresh {
             render_camera(scene, cam, focus, rgb_index, depth_index, out);
         }

@@ -235,7 +235,7 @@ fn write_colliders(scene: &Scene, field: &mut [f32]) {
                 let centre = (aabb.mins + aabb.maxs) * 0.5;
                 let half = (aabb.maxs - aabb.mins) * 0.5;
                 (
-                    [half.x as f32, half.y as f32, half.z as f32],
+                    [half.x, half.y, half.z],
                     (Pose::from_translation(centre), ShapeKind::Box as i32 as f32),
                 )
             }
@@ -252,13 +252,13 @@ fn write_colliders(scene: &Scene, field: &mut [f32]) {
             dims[0],
             dims[1],
             dims[2],
-            t.x as f32,
-            t.y as f32,
-            t.z as f32,
-            q.x as f32,
-            q.y as f32,
-            q.z as f32,
-            q.w as f32,
+            t.x,
+            t.y,
+            t.z,
+            q.x,
+            q.y,
+            q.z,
+            q.w,
         ]);
     }
     for row in rows {
@@ -272,11 +272,7 @@ fn write_colliders(scene: &Scene, field: &mut [f32]) {
 fn shape_of(shape: &dyn Shape) -> (Option<ShapeKind>, [f32; 3], Pose) {
     if let Some(b) = shape.as_cuboid() {
         let h = b.half_extents;
-        return (
-            Some(ShapeKind::Box),
-            [h.x as f32, h.y as f32, h.z as f32],
-            Pose::IDENTITY,
-        );
+        return (Some(ShapeKind::Box), [h.x, h.y, h.z], Pose::IDENTITY);
     }
     if let Some(c) = shape.as_capsule() {
         let (a, b) = (c.segment.a, c.segment.b);
@@ -289,21 +285,21 @@ fn shape_of(shape: &dyn Shape) -> (Option<ShapeKind>, [f32; 3], Pose) {
         };
         return (
             Some(ShapeKind::Capsule),
-            [c.radius as f32, half as f32, 0.0],
+            [c.radius, half, 0.0],
             Pose::from_parts((a + b) * 0.5, rotation),
         );
     }
     if let Some(s) = shape.as_ball() {
         return (
             Some(ShapeKind::Sphere),
-            [s.radius as f32, 0.0, 0.0],
+            [s.radius, 0.0, 0.0],
             Pose::IDENTITY,
         );
     }
     if let Some(c) = shape.as_cylinder() {
         return (
             Some(ShapeKind::Cylinder),
-            [c.radius as f32, c.half_height as f32, 0.0],
+            [c.radius, c.half_height, 0.0],
             Pose::from_rotation(Rotation::from_rotation_arc(Vector::Z, Vector::Y)),
         );
     }

@@ -172,7 +172,7 @@ impl<'a> SmoothMesh<'a> {
 
 /// Background: a sky gradient from the horizon up.
 fn sky(d: Vector) -> [f32; 3] {
-    let t = (d.z as f32).clamp(-0.2, 1.0) * 0.5 + 0.5;
+    let t = d.z.clamp(-0.2, 1.0) * 0.5 + 0.5;
     let (low, high) = ([0.80, 0.83, 0.87], [0.42, 0.55, 0.72]);
     [0, 1, 2].map(|i| low[i] + (high[i] - low[i]) * t)
 }
