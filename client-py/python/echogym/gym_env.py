@@ -66,7 +66,7 @@ class EchoEnv(gym.Env):
         #: The server's spec (every field, those of the render mode included).
         self.echo_spec: dict[str, Any] = json.loads(self._lease.spec_json)
         self._obs_spec, self._visible = visible_fields(self.echo_spec, hidden)
-        self.metadata = {**self.metadata, "render_fps": render_fps(self.echo_spec)}
+        self.metadata = {**self.metadata, **render_fps(self.echo_spec)}
         self._view_field = next((f["name"] for f in self.echo_spec["observation"]
                                  if f["name"] in hidden and f["name"].endswith("_rgb")), None)
         self._fields: tuple[np.ndarray, ...] = ()

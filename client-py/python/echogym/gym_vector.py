@@ -79,7 +79,7 @@ class EchoVectorEnv(VectorEnv):
         self.echo_spec: dict[str, Any] = json.loads(self._lease.spec_json)
         self._obs_spec, self._visible = visible_fields(self.echo_spec, hidden)
         self.metadata = {"autoreset_mode": self.autoreset_mode, "render_modes": ["rgb_array", "rerun"],
-                         "render_fps": render_fps(self.echo_spec)}
+                         **render_fps(self.echo_spec)}
         self._fields: tuple[np.ndarray, ...] = ()
         self._logger: Any = None
         if render_mode == "rerun":

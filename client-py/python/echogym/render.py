@@ -77,6 +77,8 @@ def visible_fields(spec: dict[str, Any], hidden: frozenset[str]) -> tuple[dict[s
     return {**spec, "observation": [spec["observation"][i] for i in keep]}, keep
 
 
-def render_fps(spec: dict[str, Any]) -> int:
-    """Frames per second of a video with one frame per env step."""
-    return max(1, int(np.round(1.0 / spec["dt_s"])))
+def render_fps(spec: dict[str, Any]) -> dict[str, int]:
+    """``{"render_fps": N}``: frames per second of a video with one frame per env step;
+    empty for envs without simulated time (``dt_s`` 0, e.g. ``echogym/Null-v0``)."""
+    dt = float(spec.get("dt_s") or 0.0)
+    return {"render_fps": max(1, int(np.round(1.0 / dt)))} if dt > 0 else {}
