@@ -72,9 +72,13 @@ class EchoEnv(gym.Env):
         self._fields: tuple[np.ndarray, ...] = ()
         self._logger: Any = None
         if render_mode == "rerun":
-            from echogym.rerun_log import RerunLogger
+            try:
+                from echogym.rerun_log import RerunLogger
 
-            self._logger = RerunLogger(self.echo_spec, num_envs=1)
+                self._logger = RerunLogger(self.echo_spec, num_envs=1)
+            except BaseException:
+                self._lease.close()  # no lease left behind by a failed start
+                raise
         self.observation_space = echo_spaces.observation_space(self._obs_spec)
         self.action_space = echo_spaces.action_space(self.echo_spec)
         self._info_keys: list[str] = self.echo_spec["info_keys"]

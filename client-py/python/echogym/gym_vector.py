@@ -83,9 +83,13 @@ class EchoVectorEnv(VectorEnv):
         self._fields: tuple[np.ndarray, ...] = ()
         self._logger: Any = None
         if render_mode == "rerun":
-            from echogym.rerun_log import RerunLogger
+            try:
+                from echogym.rerun_log import RerunLogger
 
-            self._logger = RerunLogger(self.echo_spec, num_envs=num_envs)
+                self._logger = RerunLogger(self.echo_spec, num_envs=num_envs)
+            except BaseException:
+                self._lease.close()  # no lease left behind by a failed start
+                raise
         self._view_field = next((f["name"] for f in self.echo_spec["observation"]
                                  if f["name"] in hidden and f["name"].endswith("_rgb")), None)
         self.single_observation_space = echo_spaces.observation_space(self._obs_spec)
