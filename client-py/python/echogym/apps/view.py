@@ -12,6 +12,10 @@ and the B-mode image (docs/viewer.md).
 ``--save FILE.rrd`` runs headless and writes the recording (open it later with ``rerun
 FILE.rrd``); without it the rerun viewer is spawned (``--connect URL``: stream to a viewer
 elsewhere, e.g. ``rerun --serve-grpc`` on your desktop).
+
+``echogym view --calibration OUT`` shows a calibration report instead (``echogym calibrate
+DATASET --out OUT``): every recording's measured, baseline and calibrated force, the
+residuals and the worst mismatch spans (:mod:`echogym.apps.calibration_rerun`).
 """
 
 from __future__ import annotations
@@ -101,10 +105,47 @@ def run(env_id: str, num_envs: int, steps: int, seed: int, server: str | None, p
             "env_steps_per_s": steps * num_envs / elapsed}
 
 
+def open_recording(rr: Any, name: str, save: Path | None, connect: str | None) -> Any:
+    """A recording stream saving to ``save``, streaming to ``connect``, or spawning the viewer."""
+    recording = rr.RecordingStream("echogym", recording_id=f"{name}-{time.time_ns()}")
+    if save is not None:
+        save.parent.mkdir(parents=True, exist_ok=True)
+        recording.save(save)
+    elif connect is not None:
+        recording.connect_grpc(connect)
+    else:
+        recording.spawn()
+    return recording
+
+
+def view_calibration(out: Path, save: Path | None, connect: str | None) -> int:
+    """``--calibration OUT``: log the report's replays."""
+    try:
+        from echogym.apps.calibration_rerun import log_calibration
+        from echogym.rerun_log import import_rerun
+
+        rr = import_rerun()
+        if not (out / "report.json").is_file():
+            raise FileNotFoundError(f"{out / 'report.json'}: no calibration report there")
+    except (ImportError, FileNotFoundError) as exc:
+        print(f"echogym view: {exc}", file=sys.stderr)
+        return 2
+    recording = open_recording(rr, "calibration", save, connect)
+    try:
+        count = log_calibration(out, recording)
+    finally:
+        recording.disconnect()
+    where = f"wrote {save}" if save is not None else "streamed to the viewer"
+    print(f"{count} replays of {out}: {where}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="echogym view", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("env_id", help="an echogym physics env, e.g. echogym/UltrasoundScan-v0")
+    parser.add_argument("env_id", nargs="?", help="an echogym physics env, e.g. echogym/UltrasoundScan-v0")
+    parser.add_argument("--calibration", type=Path, default=None, metavar="OUT",
+                        help="show the replays of `echogym calibrate ... --out OUT` instead of an env")
     parser.add_argument("--save", type=Path, default=None, help="write FILE.rrd instead of showing")
     parser.add_argument("--connect", default=None, metavar="URL",
                         help="stream to a running viewer (rerun+http://HOST:9876/proxy)")
@@ -123,6 +164,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--server", default=None,
                         help="server name (default $ECHOGYM_SERVER or 'default'; started if absent)")
     args = parser.parse_args(argv)
+    if (args.env_id is None) == (args.calibration is None):
+        parser.error("name an env, or a calibration report with --calibration OUT (one of them)")
+    if args.calibration is not None:
+        return view_calibration(args.calibration, args.save, args.connect)
     if args.steps < 1 or args.num_envs < 1:
         parser.error("--steps and --num-envs must be ≥ 1")
     if not isinstance(args.config, dict):
@@ -138,14 +183,7 @@ def main(argv: list[str] | None = None) -> int:
     except (ImportError, ValueError) as exc:
         print(f"echogym view: {exc}", file=sys.stderr)
         return 2
-    recording = rr.RecordingStream("echogym", recording_id=f"{args.env_id}-{time.time_ns()}")
-    if args.save is not None:
-        args.save.parent.mkdir(parents=True, exist_ok=True)
-        recording.save(args.save)
-    elif args.connect is not None:
-        recording.connect_grpc(args.connect)
-    else:
-        recording.spawn()
+    recording = open_recording(rr, args.env_id, args.save, args.connect)
     print(f"echogym {echogym.__version__}: viewing {args.env_id} x {args.num_envs}, {policy} policy, "
           f"{args.steps} steps")
     try:
