@@ -370,13 +370,16 @@ impl<T: Task> EnvFactory for ArenaFactory<T> {
             );
         }
         if config.scene_state {
-            let size =
-                SceneStateSize::of::<T>(&config).map_err(|message| EnvConfigError::Invalid {
+            // Build the scene once (task objects included) to count its colliders.
+            let mut scene =
+                Scene::new(scene_params.clone()).map_err(|e| EnvConfigError::Invalid {
                     env_id: id.to_owned(),
                     key: "scene_state",
-                    message,
+                    message: e.to_string(),
                 })?;
-            builder = size.declare(builder);
+            T::new(&config, &mut scene);
+            let largest = config.randomization.torso_scale[1];
+            builder = SceneStateSize::of(&scene, config.torso.as_ref(), largest).declare(builder);
         }
         for key in T::info_keys() {
             builder = builder.info_key(key);

@@ -4,6 +4,7 @@
 mod arena_env;
 mod config;
 mod observation;
+mod part;
 mod randomization;
 mod recorder;
 mod scene_state;
@@ -14,10 +15,11 @@ use rapier3d::prelude::Rotation;
 pub use arena_env::{ArenaEnv, ArenaFactory, Task};
 pub use config::{ArenaConfig, RecordConfig, TaskConfig};
 pub use observation::{CAMERA_FAR, CAMERA_PRESETS, CameraConfig, Observation, Shading};
+pub use part::Part;
 pub use randomization::{Draw, Randomization, gaussian};
 pub use recorder::EpisodeRecorder;
 pub use scene_state::{
-    COLLIDER_COLUMNS, CONTACT_LEN, Part, SCENE_FIELDS, SceneStateSize, ShapeKind, VERTEX_COLUMNS,
+    COLLIDER_COLUMNS, CONTACT_LEN, SCENE_FIELDS, SceneStateSize, ShapeKind, VERTEX_COLUMNS,
 };
 pub use shaded_render::render_shaded;
 

@@ -28,11 +28,10 @@
 use echogym_protocol::EnvSpecBuilder;
 use rapier3d::prelude::*;
 
-use super::arena_env::Task;
-use super::config::ArenaConfig;
+use super::part::Part;
 use crate::envs::env::EnvOutput;
 use crate::sim::scene::Scene;
-use crate::sim::torso::ShellLayout;
+use crate::sim::torso::{ShellLayout, TorsoParams};
 use crate::sim::world::{arr3, vec3};
 
 /// Columns of a `scene_colliders` row.
@@ -64,67 +63,6 @@ pub enum ShapeKind {
     TorsoMesh = 4,
 }
 
-/// What a collider belongs to (`scene_colliders[:, 1]`): 0 the table, 1 the torso, 2 the
-/// probe, 3 a loose object (the cube), `4 + k` arm link `k` (from the base).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Part {
-    /// The table.
-    Table,
-    /// The soft torso.
-    Torso,
-    /// The probe.
-    Probe,
-    /// A loose rigid object (PushCube's cube).
-    Object,
-    /// Arm link `k`, counted from the base.
-    Link(usize),
-}
-
-impl Part {
-    /// The part of collider `handle`.
-    pub fn of(scene: &Scene, handle: ColliderHandle) -> Self {
-        let s = &scene.world().sets;
-        if handle == scene.world().table() {
-            return Self::Table;
-        }
-        if Some(handle) == scene.torso_collider() {
-            return Self::Torso;
-        }
-        if handle == scene.probe_collider() {
-            return Self::Probe;
-        }
-        let parent = s.colliders.get(handle).and_then(|c| c.parent());
-        match parent.and_then(|b| scene.arm().links().iter().position(|&l| l == b)) {
-            Some(k) => Self::Link(k),
-            None => Self::Object,
-        }
-    }
-
-    /// The code written in `scene_colliders`.
-    pub fn code(self) -> f32 {
-        match self {
-            Self::Table => 0.0,
-            Self::Torso => 1.0,
-            Self::Probe => 2.0,
-            Self::Object => 3.0,
-            Self::Link(k) => 4.0 + k as f32,
-        }
-    }
-
-    /// Base colour for viewing (linear RGB, 0–1): a wooden table, skin, a blue probe, a
-    /// red object, and arm links alternating light and dark so the joints read.
-    pub fn colour(self) -> [f32; 3] {
-        match self {
-            Self::Table => [0.55, 0.42, 0.30],
-            Self::Torso => [0.93, 0.71, 0.60],
-            Self::Probe => [0.12, 0.32, 0.75],
-            Self::Object => [0.80, 0.15, 0.15],
-            Self::Link(k) if k % 2 == 0 => [0.30, 0.32, 0.36],
-            Self::Link(_) => [0.80, 0.82, 0.86],
-        }
-    }
-}
-
 /// The sizes of the scene-state fields of one env config.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SceneStateSize {
@@ -137,16 +75,14 @@ pub struct SceneStateSize {
 }
 
 impl SceneStateSize {
-    /// Build the env's scene once to count its colliders; size the torso mesh for the
-    /// largest torso the randomization can draw.
-    pub fn of<T: Task>(config: &ArenaConfig<T::Config>) -> Result<Self, String> {
-        let mut scene = Scene::new(config.scene_params()).map_err(|e| e.to_string())?;
-        T::new(config, &mut scene);
+    /// The sizes for `scene` (as built for the env, task objects included; its colliders
+    /// are counted) and its `torso` parameters, the mesh sized for the largest torso the
+    /// randomization can draw (`largest_scale`: the upper `torso_scale`).
+    pub fn of(scene: &Scene, torso: Option<&TorsoParams>, largest_scale: f64) -> Self {
         let colliders = scene.world().sets.colliders.len();
         let (mut vertices, mut triangles) = (0, 0);
-        if let Some(t) = &config.torso {
-            let largest = config.randomization.torso_scale[1].max(1.0);
-            for scale in [1.0, largest] {
+        if let Some(t) = torso {
+            for scale in [1.0, largest_scale.max(1.0)] {
                 let size = [t.size[0] * scale, t.size[1] * scale, t.size[2]];
                 let layout = ShellLayout::new(size, t.center_xy, t.bottom_z, t.spacing);
                 let (v, tr) = layout.surface_size();
@@ -154,11 +90,11 @@ impl SceneStateSize {
                 triangles = triangles.max(tr);
             }
         }
-        Ok(Self {
+        Self {
             colliders,
             vertices,
             triangles,
-        })
+        }
     }
 
     /// Declare the four fields.

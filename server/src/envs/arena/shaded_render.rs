@@ -12,7 +12,7 @@
 
 use rapier3d::prelude::*;
 
-use super::scene_state::Part;
+use super::part::Part;
 use crate::sim::camera::Camera;
 use crate::sim::scene::Scene;
 use crate::sim::vec3::{cross, normalize};
