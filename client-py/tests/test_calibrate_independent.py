@@ -79,3 +79,29 @@ def test_a_sensor_bias_is_named(tmp_path: Path, seed: int) -> None:
     lo, hi = report["effects"][0]["intervals_95"]["fz_n"]
     want = truth["effects"]["sensor_bias"]["fz_n"]
     assert abs(found - want) < 0.15 * abs(want), (found, want, lo, hi)
+    check_replays_in_rerun(case / "out", report, tmp_path / "calibration.rrd")
+
+
+def check_replays_in_rerun(out: Path, report: dict, rrd: Path) -> None:
+    """`echogym view --calibration OUT --save FILE`: every replay's measured, baseline and
+    calibrated force, the residuals and the mismatch spans, read back with rerun's reader."""
+    rerun_chunk = pytest.importorskip("rerun.chunk")
+    from echogym.apps import view
+    from echogym.calibration import load_replay
+
+    assert view.main(["--calibration", str(out), "--save", str(rrd)]) == 0
+    rows: dict[str, int] = {}
+    names: dict[str, list[str]] = {}
+    for chunk in rerun_chunk.RrdReader(rrd).store().stream().to_chunks():
+        batch = chunk.to_record_batch()
+        if "Scalars:scalars" in batch.schema.names:
+            rows[chunk.entity_path] = rows.get(chunk.entity_path, 0) + batch.num_rows
+        if "SeriesLines:names" in batch.schema.names:
+            names[chunk.entity_path] = batch.column("SeriesLines:names").to_pylist()[0]
+    heldout = report["split"]["heldout"]
+    for file in heldout:
+        base = f"/calibration/heldout/{Path(file).stem}"
+        samples = len(load_replay(out, file)["t"])
+        assert rows[f"{base}/force"] == samples
+        assert names[f"{base}/force"] == ["measured", "baseline", "calibrated"]
+        assert rows[f"{base}/residual"] == samples and rows[f"{base}/mismatch"] == samples

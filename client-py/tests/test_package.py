@@ -121,7 +121,8 @@ def test_library_modules_never_import_matplotlib():
 def test_import_echogym_loads_no_optional_stack():
     probe = ("import sys, echogym; print(__import__('json').dumps(sorted(m for m in sys.modules "
              "if m.split('.')[0] in ('matplotlib', 'torch', 'torchrl', 'tensordict', "
-             "'stable_baselines3', 'ray', 'tqdm', 'PIL') or m.startswith(('echogym.apps', "
+             "'stable_baselines3', 'ray', 'tqdm', 'PIL', 'rerun', 'moviepy') or "
+             "m.startswith(('echogym.apps', "
              "'echogym.train')))))")
     done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
                           timeout=120, check=True)
@@ -161,7 +162,8 @@ def test_every_third_party_import_is_declared():
     everything: set[str] = set()
     # Adapters that need an extra are library modules imported on their own; so is the
     # robot-data subpackage (`echogym[robotdata]`: rosbags, pyarrow).
-    optional_adapters = ("echogym.torchrl", "echogym.sb3", "echogym.robotdata")
+    optional_adapters = ("echogym.torchrl", "echogym.sb3", "echogym.rerun_log",
+                         "echogym.video", "echogym.robotdata")
     for name, path in _modules().items():
         tops = {m.split(".")[0] for m in _imports(name, path)}
         everything |= tops

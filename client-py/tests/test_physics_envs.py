@@ -148,13 +148,18 @@ def test_calibration_press_records_a_dataset(ipc, tmp_path):
     assert server.stop() == 0
 
 
-def test_rgb_array_render_mode_returns_the_camera_image(server):
+def test_rgb_array_render_mode_returns_the_viewing_camera_image(server):
     env = gym.make("echogym/PushCube-v0", render_mode="rgb_array",
                    cameras=[{"name": "bird", "width": 48, "height": 32}])
-    env.reset(seed=0)
+    obs, _ = env.reset(seed=0)
     frame = env.render()
-    assert frame.shape == (32, 48, 3) and frame.dtype == np.uint8
+    # The 256 × 256 viewing camera, not the observation's 48 × 32 one (kept in obs).
+    assert frame.shape == (256, 256, 3) and frame.dtype == np.uint8
+    assert obs["bird_rgb"].shape == (32, 48, 3) and "viewer_rgb" not in obs
     env.close()
-    with pytest.raises(ValueError, match="camera"):
-        gym.make("echogym/PushCube-v0", render_mode="rgb_array")
+    env = gym.make("echogym/PushCube-v0", render_mode="rgb_array",
+                   render_camera={"preset": "bird", "width": 48, "height": 32})
+    env.reset(seed=0)
+    assert env.render().shape == (32, 48, 3)
+    env.close()
     assert server.status()["leases"] == []

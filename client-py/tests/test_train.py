@@ -26,7 +26,7 @@ from echogym.train.models import RunningNorm  # noqa: E402
 SMALL = [
     "--env-id", "echogym/PushCube-v0", "--num-workers", "2", "--envs-per-worker", "4",
     "--frames-per-batch", "512", "--epochs", "2", "--minibatch-size", "128",
-    "--hidden", "32", "32", "--eval-episodes", "4", "--eval-envs", "4",
+    "--hidden", "32", "32", "--eval-episodes", "4", "--eval-envs", "4", "--eval-video", "96",
     "--checkpoint-every", "1024", "--progress", "false", "--seed", "3",
 ]
 
@@ -67,6 +67,15 @@ def test_short_ppo_run_checkpoints_resumes_and_detaches(server, tmp_path):
     assert any(p.name.startswith("events.out.tfevents") for p in (logdir / "tb").iterdir())
     evaluation = summary["evaluation"]
     assert evaluation["episodes"] == 4 and 0.0 <= evaluation["success_mean"] <= 1.0
+    # The evaluation's video: one deterministic episode, 96 × 96, the arm moving.
+    assert evaluation["video"] == str(logdir / "videos" / "eval-000002048.mp4")
+    import imageio.v2 as imageio
+
+    reader = imageio.get_reader(evaluation["video"], format="FFMPEG")
+    frames = [f for f in reader]
+    reader.close()
+    assert frames[0].shape == (96, 96, 3) and len(frames) >= 10
+    assert any((f != frames[0]).any() for f in frames[1:])
 
     status = _wait_for_no_leases(server)
     assert status["leases"] == [], "workers left leases behind"

@@ -3,7 +3,7 @@
 The Rust CLI (``serve``, ``status``, ``stop``, ``envs``, ``calibrate``; linked into the
 native module, the same code as the ``echogym`` binary) receives every command line with
 its arguments unchanged, except the Python applications of :data:`APPS` (``demo``,
-``ultrasound``, ``train``), which get the arguments after their name. After a Rust
+``ultrasound``, ``train``, ``view``), which get the arguments after their name. After a Rust
 command succeeds, the step :data:`AFTER` names for it runs on the arguments argparse read
 (``calibrate DATASET --out OUT`` / ``--out=OUT``: the report's plots). ``echogym --help``
 and ``echogym help`` print the Rust help, then the Python commands; ``echogym help demo``
@@ -45,6 +45,7 @@ APPS: dict[str, App] = {
                   "echogym.apps.import_logs:main"),
     "export": App("recorded episodes → a LeRobot dataset, a ROS 2 bag or MCAP (docs/data.md)",
                   "echogym.apps.export_episodes:main"),
+    "view": App("watch envs in the rerun viewer, live or saved to .rrd", "echogym.apps.view:main"),
 }
 
 

@@ -17,6 +17,8 @@ from gymnasium.vector.utils import batch_space
 from echogym import spaces as echo_spaces
 from echogym.client import as_actions, connect
 from echogym.episode import with_episode_length
+from echogym.errors import InvalidConfigError
+from echogym.render import render_config, render_fps, visible_fields
 
 _MODES = {"same_step": AutoresetMode.SAME_STEP, "disabled": AutoresetMode.DISABLED}
 
@@ -32,6 +34,13 @@ class EchoVectorEnv(VectorEnv):
         autoreset_mode: ``"same_step"`` (default: ended envs restart within the step;
             the last observation is in ``infos["final_obs"]``) or ``"disabled"``
             (reset ended envs with ``reset(options={"reset_mask": mask})``).
+        render_mode: ``None``, ``"rgb_array"`` (:meth:`render` returns one 256 × 256
+            smooth-shaded frame per env, from a viewing camera the server renders every
+            step; for ``gymnasium.wrappers.vector.RecordVideo``) or ``"rerun"`` (every
+            step is logged to rerun's current recording; docs/viewer.md). What a render
+            mode adds is hidden from the observations.
+        render_camera: Keys overriding the viewing camera of ``"rgb_array"``
+            (:data:`echogym.render.VIEW_CAMERA`), e.g. ``{"preset": "front", "width": 480}``.
         max_episode_steps: Episode length [steps], passed to the server as the env's
             length key (``horizon`` or ``max_episode_steps``) unless ``config`` sets
             that key; default the env's (see :mod:`echogym.episode`).
@@ -47,23 +56,43 @@ class EchoVectorEnv(VectorEnv):
         autostart: bool = True,
         autoreset_mode: str | AutoresetMode = "same_step",
         render_mode: str | None = None,
+        render_camera: dict[str, Any] | None = None,
         max_episode_steps: int | None = None,
         **config: Any,
     ) -> None:
-        if render_mode is not None:
-            raise ValueError(f"render_mode {render_mode!r} is not supported by {env_id}")
         mode = autoreset_mode.value if isinstance(autoreset_mode, AutoresetMode) else autoreset_mode
         if mode not in _MODES:
             raise ValueError(f"autoreset_mode must be 'same_step' or 'disabled', got {mode!r}")
+        config, hidden = render_config(config, render_mode, render_camera)
         self.autoreset_mode = _MODES[mode]
-        self.metadata = {"autoreset_mode": self.autoreset_mode, "render_modes": []}
-        self.render_mode = None
+        self.render_mode = render_mode
         self.num_envs = num_envs
         config = with_episode_length(env_id, config, max_episode_steps)
         self._client = connect(server, autostart=autostart)
-        self._lease = self._client.attach(env_id, num_envs, config, mode)
+        try:
+            self._lease = self._client.attach(env_id, num_envs, config, mode)
+        except InvalidConfigError as exc:
+            if render_mode is None:
+                raise
+            raise ValueError(f"render_mode {render_mode!r} is not available for {env_id}: {exc}") from exc
+        #: The server's spec (every field, those of the render mode included).
         self.echo_spec: dict[str, Any] = json.loads(self._lease.spec_json)
-        self.single_observation_space = echo_spaces.observation_space(self.echo_spec)
+        self._obs_spec, self._visible = visible_fields(self.echo_spec, hidden)
+        self.metadata = {"autoreset_mode": self.autoreset_mode, "render_modes": ["rgb_array", "rerun"],
+                         **render_fps(self.echo_spec)}
+        self._fields: tuple[np.ndarray, ...] = ()
+        self._logger: Any = None
+        if render_mode == "rerun":
+            try:
+                from echogym.rerun_log import RerunLogger
+
+                self._logger = RerunLogger(self.echo_spec, num_envs=num_envs)
+            except BaseException:
+                self._lease.close()  # no lease left behind by a failed start
+                raise
+        self._view_field = next((f["name"] for f in self.echo_spec["observation"]
+                                 if f["name"] in hidden and f["name"].endswith("_rgb")), None)
+        self.single_observation_space = echo_spaces.observation_space(self._obs_spec)
         self.single_action_space = echo_spaces.action_space(self.echo_spec)
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
@@ -99,7 +128,10 @@ class EchoVectorEnv(VectorEnv):
             if mask.shape != (self.num_envs,):
                 raise ValueError(f"reset_mask must have shape ({self.num_envs},)")
         fields, _, _, _, info, _, _ = self._lease.reset(mask, seeds)
-        return echo_spaces.obs_from_fields(self.echo_spec, fields), self._infos(info)
+        self._fields = fields
+        if self._logger is not None:
+            self._logger.log_reset(self.fields(), self._infos(info), mask)
+        return self._obs(fields), self._infos(info)
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every env with ``actions`` (shape ``(num_envs, action_size)``, floating
@@ -108,6 +140,9 @@ class EchoVectorEnv(VectorEnv):
             as_actions(actions)
         )
         infos = self._infos(info)
+        self._fields = fields
+        if self._logger is not None:
+            self._logger.log_step(self.fields(), reward, terminated, truncated, infos)
         if final_fields is not None:
             done = terminated | truncated
             if done.any():
@@ -115,7 +150,7 @@ class EchoVectorEnv(VectorEnv):
                 final_infos = np.empty(self.num_envs, dtype=object)
                 for i in np.flatnonzero(done):
                     final_obs[i] = echo_spaces.obs_from_fields(
-                        self.echo_spec, tuple(f[i].copy() for f in final_fields)
+                        self._obs_spec, tuple(final_fields[k][i].copy() for k in self._visible)
                     )
                     final_infos[i] = {
                         key: float(final_info[i, j]) for j, key in enumerate(self._info_keys)
@@ -124,13 +159,23 @@ class EchoVectorEnv(VectorEnv):
                 infos["_final_obs"] = done.copy()
                 infos["final_info"] = final_infos
                 infos["_final_info"] = done.copy()
-        return (
-            echo_spaces.obs_from_fields(self.echo_spec, fields),
-            reward,
-            terminated,
-            truncated,
-            infos,
-        )
+        return self._obs(fields), reward, terminated, truncated, infos
+
+    def _obs(self, fields: tuple[np.ndarray, ...]) -> Any:
+        return echo_spaces.obs_from_fields(self._obs_spec, tuple(fields[k] for k in self._visible))
+
+    def fields(self) -> dict[str, np.ndarray]:
+        """Every field of the last step by name, shape ``(num_envs, ...)``, those the
+        render mode hides included (read-only views, valid until the next step)."""
+        return {f["name"]: a for f, a in zip(self.echo_spec["observation"], self._fields)}
+
+    def render(self) -> tuple[np.ndarray, ...] | None:
+        """``rgb_array``: one frame per env (uint8 ``(h, w, 3)`` copies) of the last
+        step; other modes: ``None`` (``rerun`` logs as it steps)."""
+        if self.render_mode != "rgb_array" or not self._fields:
+            return None
+        frames = self.fields()[self._view_field]
+        return tuple(np.array(frame) for frame in frames)
 
     def close_extras(self, **kwargs: Any) -> None:
         """Give the lease back to the server."""

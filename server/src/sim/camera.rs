@@ -60,8 +60,8 @@ impl Camera {
     }
 
     /// Unit ray direction through the centre of pixel (`row`, `col`) and its cosine to
-    /// the optical axis.
-    fn ray(&self, right: [f64; 3], row: usize, col: usize) -> ([f64; 3], f64) {
+    /// the optical axis (`right`: `forward × up`).
+    pub fn ray(&self, right: [f64; 3], row: usize, col: usize) -> ([f64; 3], f64) {
         let tan = (self.fovy_deg.to_radians() / 2.0).tan();
         let aspect = self.width as f64 / self.height as f64;
         let sx = ((col as f64 + 0.5) / self.width as f64 * 2.0 - 1.0) * tan * aspect;

@@ -15,5 +15,5 @@ pub mod robot;
 pub mod scene;
 pub mod torso;
 pub mod ultrasound;
-mod vec3;
+pub(crate) mod vec3;
 pub mod world;

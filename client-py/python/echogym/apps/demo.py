@@ -11,15 +11,18 @@ Shows a progress bar on a terminal (tqdm on stderr; nothing when redirected), th
 force tracking (share of the in-contact time within ±1 N of
 the target), sweep completion and env-steps/s; writes ``force.png`` (contact force vs
 time against the target), ``frames.png`` (camera frames and the probe's B-mode
-ultrasound image, from a twin of env 0) and ``summary.json`` to
+ultrasound image, from a twin of env 0), ``demo.mp4`` (env 0's sweep seen by a
+smooth-shaded viewing camera, 25 frames/s) and ``summary.json`` to
 ``--out``. Exit code 0 when the sweep met the ±1 N / 80 % criterion, else 1.
 
-The figures need matplotlib (``pip install 'echogym[plots]'``).
+The figures need matplotlib (``pip install 'echogym[plots]'``), the video moviepy
+(``pip install 'echogym[video]'``).
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import sys
 import time
@@ -32,12 +35,15 @@ from echogym._progress import progress_bar
 from echogym.apps.plotting import plots_available, pyplot
 from echogym.apps.sweep_policy import scripted_action
 from echogym.gym_vector import EchoVectorEnv
+from echogym.video import VIDEO_EXTRA, write_mp4
 
 ENV_ID = "echogym/UltrasoundScan-v0"
+#: Frames per second of demo.mp4.
+VIDEO_FPS = 25
 
 
 def run(num_envs: int, horizon: int, seed: int, server: str | None, robot: str,
-        camera_size: int, progress: bool = True) -> dict:
+        camera_size: int, progress: bool = True, video_size: int = 256) -> dict:
     """Run one sweep episode on every env; the traces and figures as a dict."""
     client = echogym.connect(server, autostart=True)
     common = dict(server=client.name, robot=robot, horizon=horizon,
@@ -50,11 +56,18 @@ def run(num_envs: int, horizon: int, seed: int, server: str | None, robot: str,
         {"name": "side", "width": camera_size, "height": camera_size, "depth": False},
         {"name": "probe", "width": camera_size, "height": camera_size, "rgb": False},
     ]
+    # The video camera renders only the steps that become frames.
+    video_every = max(1, round(1.0 / (VIDEO_FPS * envs.echo_spec["dt_s"])))
+    if video_size > 0:
+        cameras.append({"name": "video", "preset": "overview", "width": video_size,
+                        "height": video_size, "depth": False, "shading": "smooth",
+                        "every": video_every})
     viewer = EchoVectorEnv(ENV_ID, 1, cameras=cameras, ultrasound={}, **common)
     dt = envs.echo_spec["dt_s"]
     keys = envs.echo_spec["info_keys"]
     obs, info = envs.reset(seed=seed)
     view, _ = viewer.reset(seed=seed)
+    video = [np.array(view["video_rgb"][0])] if video_size > 0 else []
     force = np.full((horizon, num_envs), np.nan)
     contact = np.zeros((horizon, num_envs), bool)
     progress_at_end = np.zeros(num_envs)
@@ -68,6 +81,8 @@ def run(num_envs: int, horizon: int, seed: int, server: str | None, robot: str,
         action = scripted_action(obs)
         obs, reward, terminated, truncated, info = envs.step(action)
         view, *_ = viewer.step(action[:1])
+        if video_size > 0 and (step + 1) % video_every == 0:
+            video.append(np.array(view["video_rgb"][0]))
         live = ~ended
         # With same-step autoreset, an ended env's info is in `final_info`.
         source = {k: np.array(info[k]) for k in keys}
@@ -109,6 +124,8 @@ def run(num_envs: int, horizon: int, seed: int, server: str | None, robot: str,
         "_force": force,
         "_contact": contact,
         "_frames": frames,
+        "_video": video,
+        "video_fps": 1.0 / (video_every * dt),
     }
 
 
@@ -166,17 +183,26 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--robot", choices=["panda", "ur5e"], default="panda")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--camera-size", type=int, default=64, help="camera width/height [px]")
+    parser.add_argument("--video-size", type=int, default=256,
+                        help="demo.mp4 width/height [px] (0: no video; default %(default)s)")
     parser.add_argument("--out", type=Path, default=Path("demo-output"), help="output folder")
     parser.add_argument("--server", default=None,
                         help="server name (default $ECHOGYM_SERVER or 'default'; started if absent)")
     args = parser.parse_args(argv)
     if not plots_available("demo"):
         return 2
+    if args.video_size > 0 and importlib.util.find_spec("moviepy") is None:
+        print(f"echogym demo: demo.mp4 needs moviepy: {VIDEO_EXTRA} (or --video-size 0)",
+              file=sys.stderr)
+        return 2
 
     print(f"echogym {echogym.__version__}: {ENV_ID} x {args.num_envs}, {args.robot}, "
           f"hybrid force/motion, scripted sweep, {args.horizon} steps at 500 Hz")
-    result = run(args.num_envs, args.horizon, args.seed, args.server, args.robot, args.camera_size)
+    result = run(args.num_envs, args.horizon, args.seed, args.server, args.robot, args.camera_size,
+                 video_size=args.video_size)
     paths = write_figures(result, args.out)
+    if result["_video"]:
+        paths.append(write_mp4(result["_video"], args.out / "demo.mp4", result["video_fps"]))
     summary = {k: v for k, v in result.items() if not k.startswith("_")}
     (args.out / "summary.json").write_text(json.dumps(summary, indent=2))
     ok = summary["within_1n_share_of_contact"] >= 0.8

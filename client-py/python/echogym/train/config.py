@@ -55,6 +55,9 @@ class TrainConfig:
     """Frames between evaluations during training (0: only at the end)."""
     eval_episodes: int = 32
     eval_envs: int = 16
+    eval_video: int = 256
+    """Width and height [px] of the video of one evaluation episode written at each
+    evaluation (``LOGDIR/videos/``; 0: none)."""
     ray_servers: list[str] | None = None
     """Collect through Ray: one collector per named server, pinned to the server's node
     (``num_workers`` worker processes each; see :mod:`echogym.train.scale_out`)."""
@@ -110,6 +113,7 @@ HELP = {
     "eval_every": "env steps between evaluations (0: only at the end)",
     "eval_episodes": "deterministic evaluation episodes (0: none)",
     "eval_envs": "envs the evaluation runs on",
+    "eval_video": "size [px] of the evaluation episode's video, LOGDIR/videos/eval-FRAMES.mp4 (0: none)",
     "ray_servers": "collect through Ray: one collector per named server, on that server's node",
     "ray_address": "Ray cluster to join (auto, HOST:6379); default: start a local cluster",
     "ray_cpus_per_collector": "Ray CPUs each remote collector asks for",

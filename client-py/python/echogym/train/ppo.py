@@ -9,9 +9,10 @@ the observation normaliser folds in the batch → the new weights (normaliser in
 go to the workers. The first batch of a fresh run only seeds the normaliser: its actions
 were drawn by a policy that saw unnormalised observations.
 
-Logs (``LOGDIR``): ``progress.csv`` and TensorBoard events per iteration, ``eval.csv`` per
-evaluation, ``checkpoints/frames_*.pt`` and ``latest.pt`` (weights, normaliser, optimiser,
-counters, RNG, config), ``config.json``, ``summary.json`` at the end.
+Logs (``LOGDIR``): ``progress.csv`` and TensorBoard events per iteration, ``eval.csv`` and
+``videos/eval-FRAMES.mp4`` (one evaluation episode) per evaluation,
+``checkpoints/frames_*.pt`` and ``latest.pt`` (weights, normaliser, optimiser, counters,
+RNG, config), ``config.json``, ``summary.json`` at the end.
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ from echogym.client import connect
 from echogym.train.checkpoint import load_checkpoint
 from echogym.train.config import TrainConfig
 from echogym.train.envs import default_obs_keys, env_factory
+from echogym.train.eval_video import record_episode
 from echogym.train.evaluation import evaluate
 from echogym.train.models import norms
 from echogym.train.networks import build_networks
@@ -376,6 +378,9 @@ class PPOTrainer:
 
     def _log_eval(self, logger: _Logger, wall: float) -> dict[str, Any]:
         result = evaluate(copy.deepcopy(self.actor), self.cfg)
+        if self.cfg.eval_video > 0:
+            video = self.logdir / "videos" / f"eval-{self.frames:09d}.mp4"
+            result["video"] = str(record_episode(copy.deepcopy(self.actor), self.cfg, video))
         row = {"frames": self.frames, "wall_time": wall}
         row.update({k: v for k, v in result.items() if k != "per_episode"})
         logger.row("eval", self.frames, row)

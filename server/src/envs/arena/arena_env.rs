@@ -12,9 +12,10 @@ use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
 
 use super::config::{ArenaConfig, TaskConfig};
-use super::observation::{declare_fields, write_fields};
+use super::observation::{HeldFrames, declare_fields, held_frames, write_fields};
 use super::randomization::Draw;
 use super::recorder::EpisodeRecorder;
+use super::scene_state::{SceneStateSize, write_scene_state};
 use crate::envs::config::{EnvConfigError, parse_config};
 use crate::envs::env::{Env, EnvOutput, Transition};
 use crate::envs::{EnvBuildError, EnvFactory};
@@ -125,6 +126,11 @@ pub struct ArenaEnv<T: Task> {
     rng: Pcg64Mcg,
     recorder: Option<EpisodeRecorder>,
     ultrasound: Option<Ultrasound>,
+    /// Index of `scene_colliders` when `scene_state` is on.
+    scene_field: Option<usize>,
+    /// Steps since the reset (cameras with `every > 1` render on its multiples).
+    frame: u64,
+    held: HeldFrames,
 }
 
 impl<T: Task> ArenaEnv<T> {
@@ -145,23 +151,27 @@ impl<T: Task> ArenaEnv<T> {
                 Ok::<_, String>(EpisodeRecorder::new(&dir, T::Config::ID, r.episodes))
             })
             .transpose()?;
+        let camera_fields: usize = config
+            .cameras
+            .iter()
+            .map(|c| usize::from(c.rgb) + usize::from(c.depth))
+            .sum();
         let ultrasound = match (&config.ultrasound, &config.torso) {
-            (Some(us), Some(torso)) => {
-                let camera_fields: usize = config
-                    .cameras
-                    .iter()
-                    .map(|c| usize::from(c.rgb) + usize::from(c.depth))
-                    .sum();
-                Some(Ultrasound {
-                    imager: Imager::new(us.clone(), torso.size),
-                    image: vec![0; us.rows * us.lines],
-                    stats: ImageStats::default(),
-                    field: config.observations.len() + camera_fields,
-                })
-            }
+            (Some(us), Some(torso)) => Some(Ultrasound {
+                imager: Imager::new(us.clone(), torso.size),
+                image: vec![0; us.rows * us.lines],
+                stats: ImageStats::default(),
+                field: config.observations.len() + camera_fields,
+            }),
             _ => None,
         };
+        let scene_field = config
+            .scene_state
+            .then(|| config.observations.len() + camera_fields + usize::from(ultrasound.is_some()));
         Ok(Self {
+            scene_field,
+            frame: 0,
+            held: held_frames(&config.cameras),
             pristine: scene.clone(),
             scene,
             controller,
@@ -232,6 +242,7 @@ impl<T: Task> Env for ArenaEnv<T> {
             self.rng = Pcg64Mcg::seed_from_u64(seed);
         }
         self.randomize();
+        self.frame = 0;
         self.task
             .reset(&self.config, &mut self.scene, &mut self.rng);
         self.controller = ArmController::new(self.config.controller.clone(), &self.scene);
@@ -250,6 +261,7 @@ impl<T: Task> Env for ArenaEnv<T> {
     }
 
     fn step(&mut self, action: &[f32], out: &mut EnvOutput<'_>) -> Transition {
+        self.frame += 1;
         let action: Vec<f64> = action.iter().map(|&a| f64::from(a)).collect();
         let action = self.task.action(&self.scene, &action);
         let (task, recorder) = (&mut self.task, &mut self.recorder);
@@ -279,11 +291,16 @@ impl<T: Task> Env for ArenaEnv<T> {
             &self.config.cameras,
             focus,
             &errors,
+            self.frame,
+            &self.held,
             out,
         );
         if let Some(us) = &self.ultrasound {
             out.u8_field(us.field).copy_from_slice(&us.image);
             us.write_info(&mut out.info()[T::info_keys().len()..]);
+        }
+        if let Some(first) = self.scene_field {
+            write_scene_state(&self.scene, first, out);
         }
     }
 }
@@ -351,6 +368,18 @@ impl<T: Task> EnvFactory for ArenaFactory<T> {
                 Some(0.0),
                 Some(255.0),
             );
+        }
+        if config.scene_state {
+            // Build the scene once (task objects included) to count its colliders.
+            let mut scene =
+                Scene::new(scene_params.clone()).map_err(|e| EnvConfigError::Invalid {
+                    env_id: id.to_owned(),
+                    key: "scene_state",
+                    message: e.to_string(),
+                })?;
+            T::new(&config, &mut scene);
+            let largest = config.randomization.torso_scale[1];
+            builder = SceneStateSize::of(&scene, config.torso.as_ref(), largest).declare(builder);
         }
         for key in T::info_keys() {
             builder = builder.info_key(key);

@@ -86,6 +86,10 @@ pub struct ArenaConfig<T: TaskConfig> {
     pub ultrasound: Option<UltrasoundConfig>,
     /// Record episodes (`null`: off).
     pub record: Option<RecordConfig>,
+    /// Deliver the scene's state for viewers (`scene_colliders`, `torso_vertices`,
+    /// `torso_triangles`, `scene_contact` after every other field); off by default, and
+    /// then it costs nothing.
+    pub scene_state: bool,
     /// The task's own settings.
     pub task: T,
 }
@@ -121,6 +125,7 @@ impl<T: TaskConfig> ArenaConfig<T> {
             cameras: Vec::new(),
             ultrasound: None,
             record: None,
+            scene_state: false,
             task,
         }
     }

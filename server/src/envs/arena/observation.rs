@@ -5,6 +5,7 @@ use echogym_protocol::{DType, EnvSpecBuilder};
 use rapier3d::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::shaded_render::render_shaded;
 use crate::envs::config::EnvConfigError;
 use crate::envs::env::EnvOutput;
 use crate::sim::camera::Camera;
@@ -50,8 +51,9 @@ impl Observation {
     }
 }
 
-/// A camera: one of the seed's views (`front`, `side`, `bird`), the probe-mounted view
-/// (`probe`), or any name with an explicit `eye` and `target`.
+/// A camera: one of the seed's views (`front`, `side`, `bird`), the whole scene
+/// (`overview`), the probe-mounted view (`probe`), or any name with an explicit `eye` and
+/// `target`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraConfig {
@@ -79,6 +81,33 @@ pub struct CameraConfig {
     /// Point looked at [m, world] (custom cameras).
     #[serde(default)]
     pub target: Option<[f64; 3]>,
+    /// Place the camera like this preset view (`front`, `side`, `bird`, `probe`) under
+    /// any name, e.g. a viewing camera beside an observation camera of the same view.
+    #[serde(default)]
+    pub preset: Option<String>,
+    /// `flat` (default: the cheap observation shading) or `smooth` (viewing: key light
+    /// with shadows, smooth skin, part colours; ≈ 2 rays a pixel).
+    #[serde(default)]
+    pub shading: Shading,
+    /// Render every `every`-th step since the reset and repeat the frame between
+    /// (a 25 frames/s video of a 500 Hz env: 20). Default 1.
+    #[serde(default = "default_every")]
+    pub every: u64,
+}
+
+fn default_every() -> u64 {
+    1
+}
+
+/// How a camera shades its RGB image.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Shading {
+    /// Each collider's flat colour under a headlight (the observation default).
+    #[default]
+    Flat,
+    /// Shaded for viewing ([`crate::envs::arena::render_shaded`]).
+    Smooth,
 }
 
 fn default_size() -> usize {
@@ -95,7 +124,7 @@ fn default_fovy() -> f64 {
 pub const CAMERA_FAR: f64 = 10.0;
 
 /// The preset views.
-pub const CAMERA_PRESETS: [&str; 4] = ["front", "side", "bird", "probe"];
+pub const CAMERA_PRESETS: [&str; 5] = ["front", "side", "bird", "probe", "overview"];
 
 impl CameraConfig {
     /// Check sizes and that the camera is placeable.
@@ -117,6 +146,12 @@ impl CameraConfig {
                 self.name
             )));
         }
+        if !(1..=1_000_000).contains(&self.every) {
+            return Err(err(format!(
+                "camera {:?}: every must be in [1, 1000000] steps",
+                self.name
+            )));
+        }
         if !(1.0..=170.0).contains(&self.fovy) {
             return Err(err(format!(
                 "camera {:?}: fovy must be in [1, 170] deg",
@@ -124,7 +159,15 @@ impl CameraConfig {
             )));
         }
         let custom = self.eye.is_some() && self.target.is_some();
-        if !custom && !CAMERA_PRESETS.contains(&self.name.as_str()) {
+        if let Some(preset) = &self.preset {
+            if custom || !CAMERA_PRESETS.contains(&preset.as_str()) {
+                return Err(err(format!(
+                    "camera {:?}: preset {preset:?} must be one of {} (and without `eye`/`target`)",
+                    self.name,
+                    CAMERA_PRESETS.join(", ")
+                )));
+            }
+        } else if !custom && !CAMERA_PRESETS.contains(&self.name.as_str()) {
             return Err(err(format!(
                 "camera {:?} is not a preset ({}) and has no `eye` and `target`",
                 self.name,
@@ -132,6 +175,16 @@ impl CameraConfig {
             )));
         }
         Ok(())
+    }
+
+    /// The preset view this camera takes (its `preset`, else its name).
+    pub fn view(&self) -> &str {
+        self.preset.as_deref().unwrap_or(&self.name)
+    }
+
+    /// Whether the camera rides on the probe (and must not see the probe itself).
+    pub fn on_probe(&self) -> bool {
+        self.eye.is_none() && self.view() == "probe"
     }
 
     /// The camera for the scene's current state (`focus`: the torso's or table's centre
@@ -142,7 +195,7 @@ impl CameraConfig {
         if let (Some(eye), Some(target)) = (self.eye, self.target) {
             return Camera::look_at(eye, target, [0.0, 0.0, 1.0], self.fovy, w, h);
         }
-        match self.name.as_str() {
+        match self.view() {
             // Facing the robot across the torso.
             "front" => Camera::look_at(
                 [cx + 0.9, cy, cz + 0.45],
@@ -155,6 +208,15 @@ impl CameraConfig {
             "side" => Camera::look_at(
                 [cx - 0.1, cy - 0.95, cz + 0.4],
                 [cx - 0.1, cy, cz],
+                [0.0, 0.0, 1.0],
+                self.fovy,
+                w,
+                h,
+            ),
+            // The whole arm and the torso, from the front right and above (viewing).
+            "overview" => Camera::look_at(
+                [cx + 0.75, cy - 1.0, cz + 0.75],
+                [cx - 0.3, cy, cz + 0.15],
                 [0.0, 0.0, 1.0],
                 self.fovy,
                 w,
@@ -247,13 +309,17 @@ pub fn declare_fields(
 }
 
 /// Write the observation fields (in spec order, starting at field 0); `task_errors`
-/// holds the task's errors. Cameras see the torso's collider as last synced.
+/// holds the task's errors. Cameras see the torso's collider as last synced; `frame` is
+/// the step since the reset (a camera renders when it is a multiple of its `every`).
+#[allow(clippy::too_many_arguments)]
 pub fn write_fields(
     scene: &Scene,
     observations: &[Observation],
     cameras: &[CameraConfig],
     focus: [f64; 3],
     task_errors: &[f32],
+    frame: u64,
+    held: &HeldFrames,
     out: &mut EnvOutput<'_>,
 ) {
     let mut index = 0;
@@ -298,44 +364,99 @@ pub fn write_fields(
             Observation::TaskErrors => field.copy_from_slice(task_errors),
         }
     }
-    if cameras.is_empty() {
-        return;
-    }
-    for cam in cameras {
-        let camera = cam.camera(scene, focus);
-        let exclude = (cam.name == "probe" && cam.eye.is_none()).then(|| scene.probe_collider());
-        let colour = |h| collider_colour(scene, h);
-        if cam.rgb && cam.depth {
-            let (rgb_index, depth_index) = (index, index + 1);
-            index += 2;
-            let mut depth = vec![0.0f32; cam.width * cam.height];
-            camera.render(
-                scene.world(),
-                exclude,
-                &colour,
-                Some(&mut depth),
-                Some(out.u8_field(rgb_index)),
-            );
-            out.f32_field(depth_index).copy_from_slice(&depth);
-        } else if cam.rgb {
-            camera.render(
-                scene.world(),
-                exclude,
-                &colour,
-                None,
-                Some(out.u8_field(index)),
-            );
-            index += 1;
-        } else {
-            camera.render(
-                scene.world(),
-                exclude,
-                &colour,
-                Some(out.f32_field(index)),
-                None,
-            );
-            index += 1;
+    for (c, cam) in cameras.iter().enumerate() {
+        let rgb_index = cam.rgb.then_some(index);
+        let depth_index = cam.depth.then_some(index + usize::from(cam.rgb));
+        index += usize::from(cam.rgb) + usize::from(cam.depth);
+        let fresh = frame.is_multiple_of(cam.every.max(1));
+        if fresh {
+            render_camera(scene, cam, focus, rgb_index, depth_index, out);
         }
+        if cam.every > 1 {
+            // Between renders the camera repeats its last frame (the record is reused
+            // across steps only sometimes, so the frame is kept here).
+            let mut held = held.lock().unwrap_or_else(|e| e.into_inner());
+            let slot = &mut held[c];
+            if let Some(i) = rgb_index {
+                if fresh {
+                    slot.rgb.clear();
+                    slot.rgb.extend_from_slice(out.u8_field(i));
+                } else if slot.rgb.len() == out.u8_field(i).len() {
+                    out.u8_field(i).copy_from_slice(&slot.rgb);
+                }
+            }
+            if let Some(i) = depth_index {
+                if fresh {
+                    slot.depth.clear();
+                    slot.depth.extend_from_slice(out.f32_field(i));
+                } else if slot.depth.len() == out.f32_field(i).len() {
+                    out.f32_field(i).copy_from_slice(&slot.depth);
+                }
+            }
+        }
+    }
+}
+
+/// The last rendered frame of a camera with `every > 1`.
+#[derive(Debug, Clone, Default)]
+pub struct HeldFrame {
+    rgb: Vec<u8>,
+    depth: Vec<f32>,
+}
+
+/// Held frames, one per camera (see [`CameraConfig::every`]).
+pub type HeldFrames = std::sync::Mutex<Vec<HeldFrame>>;
+
+/// Held frames for `cameras`, empty until their first render.
+pub fn held_frames(cameras: &[CameraConfig]) -> HeldFrames {
+    std::sync::Mutex::new(vec![HeldFrame::default(); cameras.len()])
+}
+
+/// Render one camera into its fields.
+fn render_camera(
+    scene: &Scene,
+    cam: &CameraConfig,
+    focus: [f64; 3],
+    rgb_index: Option<usize>,
+    depth_index: Option<usize>,
+    out: &mut EnvOutput<'_>,
+) {
+    let camera = cam.camera(scene, focus);
+    let exclude = cam.on_probe().then(|| scene.probe_collider());
+    let colour = |h| collider_colour(scene, h);
+    // Depth goes through a scratch buffer when both are wanted (two fields of `out`
+    // cannot be borrowed at once).
+    let mut depth = (rgb_index.is_some() && depth_index.is_some())
+        .then(|| vec![0.0f32; cam.width * cam.height]);
+    match (rgb_index, depth_index, cam.shading) {
+        (Some(r), _, Shading::Smooth) => render_shaded(
+            &camera,
+            scene,
+            exclude,
+            depth.as_deref_mut(),
+            Some(out.u8_field(r)),
+        ),
+        (None, Some(d), Shading::Smooth) => {
+            render_shaded(&camera, scene, exclude, Some(out.f32_field(d)), None)
+        }
+        (Some(r), _, Shading::Flat) => camera.render(
+            scene.world(),
+            exclude,
+            &colour,
+            depth.as_deref_mut(),
+            Some(out.u8_field(r)),
+        ),
+        (None, Some(d), Shading::Flat) => camera.render(
+            scene.world(),
+            exclude,
+            &colour,
+            Some(out.f32_field(d)),
+            None,
+        ),
+        (None, None, _) => {}
+    }
+    if let (Some(d), Some(depth)) = (depth_index, depth) {
+        out.f32_field(d).copy_from_slice(&depth);
     }
 }
 

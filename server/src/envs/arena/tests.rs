@@ -408,3 +408,152 @@ fn ultrasound_follows_contact_and_deformation_in_a_real_press() {
         "deep echo at row {r0} at {d0} m, row {r1} at {d1} m"
     );
 }
+
+fn f32_field<'a>(spec: &EnvSpec, record: &'a [u8], name: &str) -> &'a [f32] {
+    let f = spec
+        .field(name)
+        .unwrap_or_else(|| panic!("no field {name}"));
+    bytemuck::cast_slice(&record[f.offset..f.offset + f.byte_len()])
+}
+
+#[test]
+fn scene_state_is_off_by_default_and_describes_the_scene_when_on() {
+    let (spec, _) = make("echogym/UltrasoundScan-v0", serde_json::json!({}));
+    assert!(spec.field("scene_colliders").is_none());
+    let config = serde_json::json!({"scene_state": true, "robot": "ur5e"});
+    let (spec, _) = make("echogym/UltrasoundScan-v0", config.clone());
+    let colliders = spec.field("scene_colliders").unwrap().shape.clone();
+    assert_eq!(colliders[1], crate::envs::arena::COLLIDER_COLUMNS);
+    let trace = rollout("echogym/UltrasoundScan-v0", config, 3, 5);
+    let (record, _) = trace.last().unwrap();
+    let rows: Vec<&[f32]> = f32_field(&spec, record, "scene_colliders")
+        .chunks_exact(15)
+        .collect();
+    // The table, the probe and at least four arm links (the torso is its own mesh).
+    let parts: Vec<f32> = rows.iter().filter(|r| r[0] >= 0.0).map(|r| r[1]).collect();
+    for part in [0.0, 2.0] {
+        assert_eq!(
+            parts.iter().filter(|&&p| p == part).count(),
+            1,
+            "part {part}"
+        );
+    }
+    assert!(
+        parts.iter().filter(|&&p| p >= 4.0).count() >= 4,
+        "{parts:?}"
+    );
+    for row in rows.iter().filter(|r| r[0] >= 0.0) {
+        let q = &row[11..15];
+        let norm: f32 = q.iter().map(|v| v * v).sum();
+        assert!((norm - 1.0).abs() < 1e-4, "quaternion {q:?}");
+    }
+    // The probe row sits where the probe observation says its tip is (half a probe back).
+    let probe = rows.iter().find(|r| r[1] == 2.0).unwrap();
+    let tip = f32_field(&spec, record, "probe_pose");
+    let gap: f32 = (0..3)
+        .map(|k| (probe[8 + k] - tip[k]).powi(2))
+        .sum::<f32>()
+        .sqrt();
+    assert!(gap < 0.1, "probe box {gap} m from the tip");
+    // The triangles in use index the vertices in use, which lie on the torso; the
+    // rest is a finite fill.
+    let triangles = f32_field(&spec, record, "torso_triangles");
+    let used: Vec<&[f32]> = triangles.chunks_exact(3).filter(|t| t[0] >= 0.0).collect();
+    assert!(used.len() > 1000);
+    let count = used
+        .iter()
+        .flat_map(|t| t.iter())
+        .fold(0.0f32, |a, &b| a.max(b)) as usize
+        + 1;
+    let vertices: Vec<&[f32]> = f32_field(&spec, record, "torso_vertices")
+        .chunks_exact(4)
+        .collect();
+    assert!(count > 500 && count <= vertices.len());
+    for v in &vertices[..count] {
+        assert!(v[2] >= 0.79 && v[2] < 1.0, "vertex {v:?}");
+    }
+    assert!(
+        vertices[count..]
+            .iter()
+            .all(|v| v.iter().all(|&x| x == 0.0))
+    );
+}
+
+#[test]
+fn pressing_shows_a_contact_point_under_the_face_and_an_indentation() {
+    // The calibration press drives the probe into the skin's centre.
+    let config = serde_json::json!({"scene_state": true});
+    let (spec, _) = make("echogym/CalibrationPress-v0", config.clone());
+    let trace = rollout("echogym/CalibrationPress-v0", config, 0, 1500);
+    let pressed = trace.iter().rev().find(|(record, _)| {
+        let c = f32_field(&spec, record, "scene_contact");
+        c[6] == 1.0 && c[7] > 1.0
+    });
+    let (record, _) = pressed.expect("the press touched the skin");
+    let contact = f32_field(&spec, record, "scene_contact");
+    let tip = f32_field(&spec, record, "probe_pose");
+    let off: f32 = (0..3)
+        .map(|k| (contact[k] - tip[k]).powi(2))
+        .sum::<f32>()
+        .sqrt();
+    assert!(off < 0.031, "contact point {off} m from the face centre");
+    // The skin pushes the probe up.
+    assert!(contact[5] > 0.5, "force {:?}", &contact[3..6]);
+    let deepest = f32_field(&spec, record, "torso_vertices")
+        .chunks_exact(4)
+        .map(|v| v[3])
+        .fold(f32::MIN, f32::max);
+    assert!(deepest > 0.001, "deepest indentation {deepest} m");
+}
+
+#[test]
+fn smooth_shading_renders_a_different_image_with_a_sky() {
+    let camera = |shading: &str| {
+        serde_json::json!({"cameras": [{"name": "view", "preset": "overview", "width": 64,
+                                        "height": 48, "shading": shading}]})
+    };
+    let (spec, _) = make("echogym/UltrasoundScan-v0", camera("smooth"));
+    let rgb = spec.field("view_rgb").unwrap();
+    let smooth = rollout("echogym/UltrasoundScan-v0", camera("smooth"), 2, 1);
+    let flat = rollout("echogym/UltrasoundScan-v0", camera("flat"), 2, 1);
+    let image = |trace: &[(Vec<u8>, Vec<f32>)]| {
+        trace[1].0[rgb.offset..rgb.offset + rgb.byte_len()].to_vec()
+    };
+    assert_ne!(image(&smooth), image(&flat));
+    // Depth is the same measurement either way.
+    let depth =
+        |trace: &[(Vec<u8>, Vec<f32>)]| f32_field(&spec, &trace[1].0, "view_depth").to_vec();
+    assert_eq!(depth(&smooth), depth(&flat));
+    // Where nothing is hit the sky darkens upwards (the flat path's backdrop is uniform).
+    let (pixels, d) = (image(&smooth), depth(&smooth));
+    let sky: Vec<u8> = (0..48)
+        .filter(|&row| d[row * 64] >= 10.0)
+        .map(|row| pixels[row * 64 * 3 + 2])
+        .collect();
+    assert!(
+        sky.len() >= 2 && sky.first() != sky.last(),
+        "sky column {sky:?}"
+    );
+    // A preset that is not one is refused, naming it.
+    let registry = EnvRegistry::default();
+    let factory = registry.get("echogym/UltrasoundScan-v0").unwrap();
+    let bad = serde_json::json!({"cameras": [{"name": "x", "preset": "nowhere"}]});
+    let err = factory.spec(&map(bad)).unwrap_err().to_string();
+    assert!(err.contains("cameras") && err.contains("nowhere"), "{err}");
+}
+
+#[test]
+fn a_camera_with_every_holds_its_frame_between_renders() {
+    let config = serde_json::json!({
+        "cameras": [{"name": "probe", "width": 24, "height": 16, "rgb": false, "every": 3}],
+    });
+    let (spec, _) = make("echogym/UltrasoundScan-v0", config.clone());
+    let trace = rollout("echogym/UltrasoundScan-v0", config, 5, 7);
+    let depth = |k: usize| f32_field(&spec, &trace[k].0, "probe_depth").to_vec();
+    // Rendered at steps 0, 3, 6; held at 1, 2, 4, 5 (the probe moves every step).
+    assert_eq!(depth(1), depth(0));
+    assert_eq!(depth(2), depth(0));
+    assert_ne!(depth(3), depth(0));
+    assert_eq!(depth(5), depth(3));
+    assert_ne!(depth(6), depth(3));
+}

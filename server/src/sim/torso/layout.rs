@@ -176,6 +176,15 @@ impl ShellLayout {
     pub fn top_len(&self) -> usize {
         self.nx * self.ny
     }
+
+    /// Vertex and triangle counts of the torso's surface mesh
+    /// ([`crate::sim::torso::Torso::surface_triangles`]).
+    pub fn surface_size(&self) -> (usize, usize) {
+        let band = self.boundary.len();
+        let vertices = self.len() + band;
+        let triangles = 2 * (self.nx - 1) * (self.ny - 1) + 2 * band * (self.rings + 1);
+        (vertices, triangles)
+    }
 }
 
 #[cfg(test)]

@@ -661,6 +661,14 @@ mod tests {
     }
 
     #[test]
+    fn surface_size_counts_the_surface_mesh() {
+        let torso = Torso::new(TorsoParams::default(), ProbeFace::default()).unwrap();
+        let (vertices, triangles) = torso.layout().surface_size();
+        assert_eq!(vertices, torso.surface_vertices().len());
+        assert_eq!(triangles, torso.surface_triangles().len());
+    }
+
+    #[test]
     fn default_stiffness_is_in_the_seed_range() {
         let torso = Torso::new(TorsoParams::default(), ProbeFace::default()).unwrap();
         let k = torso.static_probe_stiffness([0.0, 0.0], 0.005);
