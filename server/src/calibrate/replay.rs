@@ -263,6 +263,21 @@ pub struct BodyReplay {
     invalid: bool,
 }
 
+/// The body's surface under recording `index` as `model` has it: `(xy, velocity) →`
+/// (height above the flat torso's top, its rate of change) (see [`geometry::shift`]).
+fn surface_of<'a>(
+    setup: &'a Setup,
+    model: &'a Model,
+    index: usize,
+) -> impl Fn([f64; 2], [f64; 3]) -> (f64, f64) + 'a {
+    let site_surface = setup
+        .recording_sites
+        .get(index)
+        .and_then(|site| model.surface_at(site));
+    let path = model.paths.iter().find(|p| p.recording == index);
+    move |xy, v| geometry::shift(site_surface, path, xy, v)
+}
+
 /// The body part of a replay (see [`BodyReplay`]).
 pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -> BodyReplay {
     let params = setup.torso_params(model);
@@ -309,12 +324,7 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
         }
     }
     let top = params.top_z();
-    let site_surface = setup
-        .recording_sites
-        .get(index)
-        .and_then(|site| model.surface_at(site));
-    let path = model.paths.iter().find(|p| p.recording == index);
-    let surface = |xy: [f64; 2], v: [f64; 3]| geometry::shift(site_surface, path, xy, v);
+    let surface = surface_of(setup, model, index);
     let t0 = recording.t[0];
     let t_end = *recording.t.last().expect("recordings have samples");
     let steps = ((t_end - t0) / REPLAY_DT).ceil() as usize + 1;
@@ -386,12 +396,7 @@ pub fn sense(
     let steps = sim_t.len();
     let t0 = recording.t[0];
     let top = setup.torso_params(model).top_z();
-    let site_surface = setup
-        .recording_sites
-        .get(index)
-        .and_then(|site| model.surface_at(site));
-    let path = model.paths.iter().find(|p| p.recording == index);
-    let surface = |xy: [f64; 2], v: [f64; 3]| geometry::shift(site_surface, path, xy, v);
+    let surface = surface_of(setup, model, index);
     if model.filter_cutoff_hz > 0.0 {
         let alpha = low_pass_alpha(model.filter_cutoff_hz, REPLAY_DT);
         for series in [&mut sim_f, &mut sim_fx, &mut sim_fy] {

@@ -93,17 +93,7 @@ impl Camera {
         if let Some(c) = &rgb {
             assert_eq!(c.len(), pixels * 3, "rgb buffer size");
         }
-        let s = &world.sets;
-        let mut filter = QueryFilter::default();
-        if let Some(h) = exclude {
-            filter = filter.exclude_collider(h);
-        }
-        let pipeline = s.broad_phase.as_query_pipeline(
-            s.narrow_phase.query_dispatcher(),
-            &s.bodies,
-            &s.colliders,
-            filter,
-        );
+        let pipeline = world.query_pipeline(exclude);
         let right = cross(self.forward, self.up);
         let origin = vec3(self.eye);
         for row in 0..self.height {

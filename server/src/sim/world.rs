@@ -255,6 +255,22 @@ impl World {
         self.table
     }
 
+    /// A query pipeline over the world as of the last step (ray casts, shape queries),
+    /// skipping `exclude` (e.g. the probe, for a camera mounted on it).
+    pub fn query_pipeline(&self, exclude: Option<ColliderHandle>) -> QueryPipeline<'_> {
+        let s = &self.sets;
+        let mut filter = QueryFilter::default();
+        if let Some(h) = exclude {
+            filter = filter.exclude_collider(h);
+        }
+        s.broad_phase.as_query_pipeline(
+            s.narrow_phase.query_dispatcher(),
+            &s.bodies,
+            &s.colliders,
+            filter,
+        )
+    }
+
     /// First collider hit by the ray from `origin` along `direction` (unit) within
     /// `max_distance`, with the hit distance \[m\]. Sees every collider, including the
     /// torso's skin (as of the last step).
@@ -264,14 +280,7 @@ impl World {
         direction: [f64; 3],
         max_distance: f64,
     ) -> Option<(ColliderHandle, f64)> {
-        let s = &self.sets;
-        let pipeline = s.broad_phase.as_query_pipeline(
-            s.narrow_phase.query_dispatcher(),
-            &s.bodies,
-            &s.colliders,
-            QueryFilter::default(),
-        );
-        pipeline
+        self.query_pipeline(None)
             .cast_ray(
                 &Ray::new(vec3(origin), vec3(direction)),
                 max_distance as Real,

@@ -32,20 +32,13 @@ pub fn render_shaded(
     mut depth: Option<&mut [f32]>,
     mut rgb: Option<&mut [u8]>,
 ) {
-    let s = &scene.world().sets;
-    let mut filter = QueryFilter::default();
-    if let Some(h) = exclude {
-        filter = filter.exclude_collider(h);
-    }
-    let pipeline = s.broad_phase.as_query_pipeline(
-        s.narrow_phase.query_dispatcher(),
-        &s.bodies,
-        &s.colliders,
-        filter,
-    );
+    let pipeline = scene.world().query_pipeline(exclude);
     let torso = scene.torso_collider();
     let skin = torso.and_then(|h| {
-        s.colliders
+        scene
+            .world()
+            .sets
+            .colliders
             .get(h)?
             .shape()
             .as_trimesh()
