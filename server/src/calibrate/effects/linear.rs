@@ -64,25 +64,14 @@ pub(super) fn fit_shared(
     base: Base,
     candidate: &Columns<'_>,
 ) -> (f64, Vec<f64>, Vec<Vec<f64>>) {
-    fit_with(series, train, grid, base, true, candidate)
-}
-
-/// [`fit_shared`], choosing whether the damping readjustment is free (a sensor delay
-/// looks like negative damping at low frequencies: its fit must not trade against it).
-pub(super) fn fit_with(
-    series: &[Series],
-    train: &[bool],
-    grid: &[f64],
-    base: Base,
-    damping: bool,
-    candidate: &Columns<'_>,
-) -> (f64, Vec<f64>, Vec<Vec<f64>>) {
-    let (g, beta, predicted, _) = fit_scored(series, train, grid, base, damping, candidate);
+    let (g, beta, predicted, _) = fit_scored(series, train, grid, base, true, candidate);
     (g, beta, predicted)
 }
 
-/// [`fit_with`], also returning the training sum of squares at the best grid value (to
-/// compare candidate forms of one effect).
+/// [`fit_shared`], choosing whether the damping readjustment is free (a sensor delay
+/// looks like negative damping at low frequencies: its fit must not trade against it),
+/// and also returning the training sum of squares at the best grid value (to compare
+/// candidate forms of one effect).
 pub(super) fn fit_scored(
     series: &[Series],
     train: &[bool],
