@@ -25,9 +25,9 @@ pub const MIN_EXPLAINED: f64 = 0.3;
 /// modelled in the simulator too, and the simulator decides.
 pub const CLOSE_CALL: f64 = 0.75;
 /// A close call's loser whose validation gain in the simulator reaches this share of the
-/// winner's is reported as indistinguishable from it (frozen before the session-8
-/// matrix; on the session-6 seed-1 data a delay and a filter were within 0.9 of each
-/// other both ways).
+/// winner's is reported as indistinguishable from it. Set after seeing one case (the
+/// independent generator's `sensor_delay`, seed 1: the loser reached 0.92 of the
+/// winner's gain) and not tuned since.
 pub const INDISTINGUISHABLE: f64 = 0.85;
 /// LM iterations of the refit after each accepted effect.
 const EFFECT_ITERATIONS: usize = 5;
