@@ -63,6 +63,10 @@ pub fn named(name: &str) -> Option<&'static dyn Effect> {
     CATALOGUE.iter().copied().find(|e| e.name() == name)
 }
 
+/// See [`Effect::richer`]: the share of the training sum of squares a richer form may
+/// leave (the two-branch relaxation signature's rule, frozen before session 8).
+pub const RICHER_SSE_SHARE: f64 = 0.8;
+
 /// Parameters of a fitted signature, by catalogue key.
 pub type Params = serde_json::Map<String, serde_json::Value>;
 
@@ -141,6 +145,14 @@ pub trait Effect: Sync {
     /// its signature is compared with): the baseline's readjustment by default.
     fn null(&self, series: &[Series], train: &[bool], base: Base) -> Vec<Vec<f64>> {
         readjusted(series, train, base)
+    }
+
+    /// A richer form of the element to try in the simulator once this one is accepted
+    /// (a second relaxation branch): `model` with it added, or `None`. Kept only when
+    /// the refit leaves at most [`RICHER_SSE_SHARE`] of the simpler form's training
+    /// sum of squares and does no worse on validation.
+    fn richer(&self, _model: &Model) -> Option<Model> {
+        None
     }
 
     /// Put the simulator element into `model`, from the signature's parameters.
