@@ -300,6 +300,56 @@ fn one_client_cannot_take_the_whole_server() {
 }
 
 #[test]
+fn shared_memory_is_budgeted_per_client_and_per_server() {
+    // A Null env with 4,096 float32 observations: 16 KiB per env per sample, so 64 envs
+    // preallocate ≈ 6 MiB over their six observation samples.
+    let server = TestServer::start_in(
+        "isolation-shm",
+        common::fresh_location(),
+        &[
+            "--max-shm-bytes-per-client",
+            &(8u64 << 20).to_string(),
+            "--max-shm-bytes",
+            &(14u64 << 20).to_string(),
+        ],
+    );
+    let wide = |num_envs| AttachOptions {
+        env_id: "echogym/Null-v0".into(),
+        num_envs,
+        config: serde_json::json!({"obs_size": 4096})
+            .as_object()
+            .cloned()
+            .unwrap(),
+        autoreset_mode: AutoresetMode::Disabled,
+    };
+    let refusal = |result: Result<echogym_client::Lease, ControlCallError>| match result {
+        Err(ControlCallError::Refused { kind, message }) => {
+            assert_eq!(kind, echogym_protocol::ControlErrorKind::CapacityExceeded);
+            message
+        }
+        Err(other) => panic!("expected a capacity refusal, got {other}"),
+        Ok(_) => panic!("attach beyond the shared-memory budget accepted"),
+    };
+    let first = server.connect();
+    let mut held = first.attach(&wide(64)).expect("within the budget");
+    held.reset(None, None).expect("reset");
+    let message = refusal(first.attach(&wide(32)));
+    assert!(message.contains("max_shm_bytes_per_client"), "{message}");
+    // Another client gets its own budget, until the server's is spent.
+    let second = server.connect();
+    let mut other = second.attach(&wide(64)).expect("its own budget");
+    other.reset(None, None).expect("reset");
+    let third = server.connect();
+    let message = refusal(third.attach(&wide(64)));
+    assert!(message.contains("server's max_shm_bytes of"), "{message}");
+    // Small leases still fit, and the refused ones left nothing behind.
+    let mut small = attach_null(&third, 2, serde_json::json!({}), AutoresetMode::Disabled);
+    small.reset(None, None).expect("reset");
+    assert_eq!(status(&third).leases.len(), 3);
+    drop((small, other, held, third, second, first));
+}
+
+#[test]
 fn only_the_attaching_client_can_detach_a_lease() {
     let server = TestServer::start_in("isolation-owner", common::fresh_location(), &[]);
     let owner = server.connect();

@@ -111,6 +111,15 @@ pub struct BatchLayout {
     pub obs: ObsLayout,
 }
 
+impl BatchLayout {
+    /// Bytes of shared memory the lease's two channels preallocate (payloads; headers
+    /// and alignment add a little).
+    pub fn shared_memory_bytes(&self) -> usize {
+        crate::services::LEASE_CHANNEL_SAMPLES
+            .saturating_mul(self.action.total.saturating_add(self.obs.total))
+    }
+}
+
 /// A strided view of one observation field across the batch, for building array views.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct FieldView {

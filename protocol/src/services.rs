@@ -74,6 +74,11 @@ fn alignment() -> Alignment {
     Alignment::new(PAYLOAD_ALIGN).expect("power of two")
 }
 
+/// Samples iceoryx2 preallocates per lease channel (see [`lease_channel`]): its
+/// subscriber's buffer and borrows (2 + 2) plus the publisher's loans (2, iceoryx2's
+/// default); no history.
+pub const LEASE_CHANNEL_SAMPLES: usize = 6;
+
 /// A lease's pub-sub service (action or obs): one publisher, one subscriber, one
 /// exchange in flight, so two buffered samples are plenty.
 pub fn lease_channel<S: Service, H: std::fmt::Debug + ZeroCopySend>(

@@ -137,6 +137,12 @@ struct ServeArgs {
     /// Most envs one client process holds.
     #[arg(long)]
     max_envs_per_client: Option<usize>,
+    /// Most bytes of lease shared memory at once, over all leases.
+    #[arg(long)]
+    max_shm_bytes: Option<u64>,
+    /// Most bytes of lease shared memory one client process holds.
+    #[arg(long)]
+    max_shm_bytes_per_client: Option<u64>,
     /// The folder every env's `record.dir` must lie in (default: the working directory).
     #[arg(long)]
     recordings_root: Option<PathBuf>,
@@ -183,6 +189,11 @@ impl ServeArgs {
             &self.max_leases_per_client,
         );
         set(&mut config.max_envs_per_client, &self.max_envs_per_client);
+        set(&mut config.max_shm_bytes, &self.max_shm_bytes);
+        set(
+            &mut config.max_shm_bytes_per_client,
+            &self.max_shm_bytes_per_client,
+        );
         if let Some(root) = &self.recordings_root {
             config.recordings_root =
                 Some(std::path::absolute(root).unwrap_or_else(|_| root.clone()));

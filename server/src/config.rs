@@ -33,6 +33,12 @@ pub struct ServeConfig {
     pub max_leases_per_client: usize,
     /// Most envs one client process holds at once. Default 16,384.
     pub max_envs_per_client: usize,
+    /// Most bytes of lease shared memory (action and observation samples) held at once,
+    /// over all leases. Default 16 GiB.
+    pub max_shm_bytes: u64,
+    /// Most bytes of lease shared memory one client process holds at once. Default
+    /// 4 GiB (a quarter of `max_shm_bytes`).
+    pub max_shm_bytes_per_client: u64,
     /// The folder every env's `record.dir` must lie in (relative ones are joined to it).
     /// Default: the server's working directory at start.
     pub recordings_root: Option<std::path::PathBuf>,
@@ -60,6 +66,8 @@ impl Default for ServeConfig {
             max_envs: 65_536,
             max_leases_per_client: 64,
             max_envs_per_client: 16_384,
+            max_shm_bytes: 16 << 30,
+            max_shm_bytes_per_client: 4 << 30,
             recordings_root: None,
             log: "info".to_owned(),
             ipc: IpcLocation::from_env(),
@@ -135,6 +143,12 @@ impl ServeConfig {
                 "and max_envs_per_client must be positive",
             ));
         }
+        if self.max_shm_bytes == 0 || self.max_shm_bytes_per_client == 0 {
+            return Err(invalid(
+                "max_shm_bytes",
+                "and max_shm_bytes_per_client must be positive",
+            ));
+        }
         if let Some(root) = &self.recordings_root
             && !root.is_absolute()
         {
@@ -173,6 +187,8 @@ impl ServeConfig {
             max_envs: self.max_envs,
             max_leases_per_client: self.max_leases_per_client,
             max_envs_per_client: self.max_envs_per_client,
+            max_shm_bytes: self.max_shm_bytes,
+            max_shm_bytes_per_client: self.max_shm_bytes_per_client,
             parent_pid: self.parent_pid,
         }
     }

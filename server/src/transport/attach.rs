@@ -8,7 +8,9 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use echogym_protocol::{AttachReply, AttachRequest, ControlError, ControlErrorKind, ControlReply};
+use echogym_protocol::{
+    AttachReply, AttachRequest, BatchLayout, ControlError, ControlErrorKind, ControlReply,
+};
 
 use super::builder::BuildJob;
 use super::dispatcher::Dispatcher;
@@ -22,6 +24,7 @@ pub(super) struct AttachPlan {
     request: AttachRequest,
     client_node: u128,
     spec: echogym_protocol::EnvSpec,
+    shm_bytes: u64,
 }
 
 impl Dispatcher {
@@ -79,7 +82,23 @@ impl Dispatcher {
                 ),
             ));
         }
-        let (client_leases, client_envs) = self.held_by(client_node);
+        let layout = BatchLayout::new(&spec, request.num_envs, request.autoreset_mode)
+            .map_err(|e| refusal(ControlErrorKind::InvalidConfig, e.to_string()))?;
+        let shm_bytes = layout.shared_memory_bytes() as u64;
+        let shm_in_use = self.shm_bytes_in_use();
+        if shm_in_use.saturating_add(shm_bytes) > self.options.max_shm_bytes {
+            return Err(refusal(
+                ControlErrorKind::CapacityExceeded,
+                format!(
+                    "{} envs need {} of shared memory, which would exceed the server's max_shm_bytes of {} ({} in use or being built)",
+                    request.num_envs,
+                    mib(shm_bytes),
+                    mib(self.options.max_shm_bytes),
+                    mib(shm_in_use)
+                ),
+            ));
+        }
+        let (client_leases, client_envs, client_shm) = self.held_by(client_node);
         if client_leases >= self.options.max_leases_per_client {
             return Err(refusal(
                 ControlErrorKind::CapacityExceeded,
@@ -101,10 +120,23 @@ impl Dispatcher {
                 ),
             ));
         }
+        if client_shm.saturating_add(shm_bytes) > self.options.max_shm_bytes_per_client {
+            return Err(refusal(
+                ControlErrorKind::CapacityExceeded,
+                format!(
+                    "{} envs need {} of shared memory, which would exceed this client's max_shm_bytes_per_client of {} ({} held or being built)",
+                    request.num_envs,
+                    mib(shm_bytes),
+                    mib(self.options.max_shm_bytes_per_client),
+                    mib(client_shm)
+                ),
+            ));
+        }
         Ok(AttachPlan {
             request,
             client_node,
             spec,
+            shm_bytes,
         })
     }
 
@@ -118,6 +150,7 @@ impl Dispatcher {
             request: attach,
             client_node,
             spec,
+            shm_bytes,
         } = plan;
         let queued = self.builder.build(BuildJob {
             ticket,
@@ -142,6 +175,7 @@ impl Dispatcher {
             client_label: attach.client_label,
             env_id: attach.env_id,
             num_envs: attach.num_envs,
+            shm_bytes,
             mode: attach.autoreset_mode,
             started: Instant::now(),
         });
@@ -242,13 +276,22 @@ impl Dispatcher {
     }
 
     /// Leases and envs `client` holds or is having built.
-    fn held_by(&self, client: u128) -> (usize, usize) {
+    /// Leases, envs and bytes of shared memory a client holds or is having built.
+    fn held_by(&self, client: u128) -> (usize, usize, u64) {
         let leases = self.leases.iter().filter(|l| l.client_node == client);
         let pending = self.pending.iter().filter(|p| p.client_node == client);
         let count = leases.clone().count() + pending.clone().count();
-        let envs = leases.map(|l| l.batch.len()).sum::<usize>()
-            + pending.map(|p| p.num_envs).sum::<usize>();
-        (count, envs)
+        let envs = leases.clone().map(|l| l.batch.len()).sum::<usize>()
+            + pending.clone().map(|p| p.num_envs).sum::<usize>();
+        let bytes =
+            leases.map(lease_shm_bytes).sum::<u64>() + pending.map(|p| p.shm_bytes).sum::<u64>();
+        (count, envs, bytes)
+    }
+
+    /// Bytes of lease shared memory held and being built.
+    fn shm_bytes_in_use(&self) -> u64 {
+        self.leases.iter().map(lease_shm_bytes).sum::<u64>()
+            + self.pending.iter().map(|p| p.shm_bytes).sum::<u64>()
     }
 
     /// Envs held by leases and being built.
@@ -257,4 +300,13 @@ impl Dispatcher {
         let building: usize = self.pending.iter().map(|p| p.num_envs).sum();
         held + building
     }
+}
+
+fn lease_shm_bytes(lease: &Lease) -> u64 {
+    lease.batch.layout().shared_memory_bytes() as u64
+}
+
+/// Bytes as MiB for messages.
+fn mib(bytes: u64) -> String {
+    format!("{:.1} MiB", bytes as f64 / f64::from(1 << 20))
 }

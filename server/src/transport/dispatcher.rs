@@ -63,6 +63,10 @@ pub struct DispatcherOptions {
     pub max_leases_per_client: usize,
     /// Most envs one client holds.
     pub max_envs_per_client: usize,
+    /// Most bytes of lease shared memory at once, over all leases.
+    pub max_shm_bytes: u64,
+    /// Most bytes of lease shared memory one client holds.
+    pub max_shm_bytes_per_client: u64,
     /// Stop when this process is no longer our parent (private servers).
     pub parent_pid: Option<u32>,
 }

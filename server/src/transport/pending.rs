@@ -18,6 +18,8 @@ pub(super) struct PendingAttach {
     pub client_label: String,
     pub env_id: String,
     pub num_envs: usize,
+    /// Bytes of shared memory its lease will preallocate.
+    pub shm_bytes: u64,
     pub mode: AutoresetMode,
     pub started: Instant,
 }
