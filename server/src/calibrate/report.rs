@@ -101,6 +101,11 @@ struct Figures {
     test: [f64; 2],
 }
 
+/// Below this ratio of the test RMSE before calibration to the noise floor, the test
+/// recordings hold no excess worth a capture figure (the "explained up to noise"
+/// bar for a baseline).
+pub const CAPTURE_MIN_RATIO: f64 = 1.3;
+
 impl Figures {
     fn of(o: &Outcome) -> Self {
         let both = |idx: &[usize]| [rmse_of(o, idx, false), rmse_of(o, idx, true)];
@@ -111,9 +116,12 @@ impl Figures {
         }
     }
 
-    /// `(before − after)/(before − σ)` on test: the share of the excess error captured.
-    fn capture(&self, noise: f64) -> f64 {
-        (self.test[0] - self.test[1]) / (self.test[0] - noise).max(1e-12)
+    /// `(before − after)/(before − σ)` on test: the share of the excess error captured;
+    /// `None` when the test recordings were within [`CAPTURE_MIN_RATIO`]× the noise floor
+    /// before calibration (no excess to capture: a ratio of two small numbers).
+    fn capture(&self, noise: f64) -> Option<f64> {
+        (self.test[0] > CAPTURE_MIN_RATIO * noise)
+            .then(|| (self.test[0] - self.test[1]) / (self.test[0] - noise).max(1e-12))
     }
 }
 
@@ -226,6 +234,12 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
             "heldout_rmse_after_n": fig.test[1],
             "reduction": (fig.test[0] - fig.test[1]) / fig.test[0].max(1e-12),
             "capture": fig.capture(o.noise),
+            "capture_note": match fig.capture(o.noise) {
+                Some(_) => serde_json::Value::Null,
+                None => format!(
+                    "the test recordings were within {CAPTURE_MIN_RATIO}× the noise floor before calibration: no excess to capture there (see the validation figures)"
+                ).into(),
+            },
             "validation_rmse_before_n": fig.validation[0],
             "validation_rmse_after_n": fig.validation[1],
         },
@@ -493,13 +507,19 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
         "| | train RMSE | validation RMSE | test RMSE |\n|---|---:|---:|---:|\n| baseline | {:.3} N | {:.3} N | {:.3} N |\n| calibrated | {:.3} N | {:.3} N | {:.3} N |\n",
         fig.train[0], fig.validation[0], fig.test[0], fig.train[1], fig.validation[1], fig.test[1]
     );
+    let captured = match fig.capture(o.noise) {
+        Some(c) => format!("{:.0} % of the excess over the noise floor", 100.0 * c),
+        None => format!(
+            "the test recordings were within {CAPTURE_MIN_RATIO}× the noise floor before calibration, so there was no excess to capture there; validation {:.3} N → {:.3} N",
+            fig.validation[0], fig.validation[1]
+        ),
+    };
     let _ = writeln!(
         s,
-        "Test RMSE {:.3} N → {:.3} N ({:.0} % lower; {:.0} % of the excess over the noise floor). Calibrated scene: `calibrated.toml`.\n",
+        "Test RMSE {:.3} N → {:.3} N ({:.0} % lower; {captured}). Calibrated scene: `calibrated.toml`.\n",
         fig.test[0],
         fig.test[1],
         100.0 * (fig.test[0] - fig.test[1]) / fig.test[0].max(1e-12),
-        100.0 * fig.capture(o.noise)
     );
     let _ = writeln!(s, "## Unexplained\n");
     if o.verdict.unexplained {
