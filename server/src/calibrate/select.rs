@@ -143,11 +143,20 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
         // and the better validation gain wins.
         // (Not between an effect and one it contains: the contains rule decided those.)
         let contains = |a: &str, b: &str| effects::named(a).and_then(|e| e.contains()) == Some(b);
+        // A rival of the winner (see `Effect::rivals`) that passed too is always a
+        // contender.
+        let rivals = effects::named(first.name).map_or(&[][..], |e| e.rivals());
         let contenders: Vec<&decision::Accepted> = found
             .iter()
-            .take(2)
-            .filter(|c| c.gain >= CLOSE_CALL * first.gain)
-            .filter(|c| !contains(c.name, first.name) && !contains(first.name, c.name))
+            .enumerate()
+            .filter(|(k, c)| {
+                (*k < 2 && c.gain >= CLOSE_CALL * first.gain) || rivals.contains(&c.name)
+            })
+            .map(|(_, c)| c)
+            .filter(|c| {
+                c.name == first.name
+                    || (!contains(c.name, first.name) && !contains(first.name, c.name))
+            })
             .collect();
         let trials: Vec<Trial> = contenders
             .iter()

@@ -124,6 +124,14 @@ pub trait Effect: Sync {
     /// Catalogue name.
     fn name(&self) -> &'static str;
 
+    /// Effects that mimic this one where the data excite them little (a sensor delay
+    /// and a first-order filter both lag the force by ≈ τ below the cut-off): when this
+    /// one wins a round, a rival whose signature passed too is modelled in the simulator
+    /// beside it whatever its gain, and the simulator decides.
+    fn rivals(&self) -> &'static [&'static str] {
+        &[]
+    }
+
     /// Where its signature shows.
     fn channel(&self) -> Channel {
         Channel::Normal

@@ -17,6 +17,10 @@ impl Effect for SensorDelay {
         NAME
     }
 
+    fn rivals(&self) -> &'static [&'static str] {
+        &["sensor_filter"]
+    }
+
     fn signature(&self, series: &[Series], train: &[bool], base: Base) -> Option<Signature> {
         signature(series, train, base)
     }

@@ -30,6 +30,10 @@ impl Effect for SensorFilter {
         NAME
     }
 
+    fn rivals(&self) -> &'static [&'static str] {
+        &["sensor_delay"]
+    }
+
     fn signature(&self, series: &[Series], train: &[bool], base: Base) -> Option<Signature> {
         let grid = log_grid(CUTOFF_HZ[0], CUTOFF_HZ[1], 35);
         let (cutoff, predicted, readjust) = fit_sensor_stage(series, train, base, &grid, &low_pass);
