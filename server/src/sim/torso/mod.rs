@@ -14,7 +14,6 @@
 
 mod breathing;
 mod contact;
-mod factor;
 mod law;
 mod layout;
 mod params;

@@ -92,9 +92,8 @@ pub struct Workspace {
     precond: Vec<f64>,
 }
 
-/// Solve `A·x = b` by Jacobi-preconditioned CG, starting from `x`. Stops when the
-/// residual norm falls below `tolerance · |b|` or after `max_iterations`; returns the
-/// iterations used.
+/// Solve `A·x = b` by preconditioned CG, starting from `x`. Stops when the residual norm
+/// falls below `tolerance · |b|` or after `max_iterations`; returns the iterations used.
 pub fn conjugate_gradient(
     system: &System<'_>,
     b: &[f64],
@@ -103,46 +102,26 @@ pub fn conjugate_gradient(
     max_iterations: usize,
     ws: &mut Workspace,
 ) -> usize {
-    ws.precond.resize(b.len(), 0.0);
-    system.diagonal(&mut ws.precond);
-    let diagonal = std::mem::take(&mut ws.precond);
-    let iterations = preconditioned_cg(system, b, x, tolerance, max_iterations, ws, |r, z| {
-        for ((z, r), d) in z.iter_mut().zip(r).zip(&diagonal) {
-            *z = r / d;
-        }
-    });
-    ws.precond = diagonal;
-    iterations
-}
-
-/// Solve `A·x = b` by CG preconditioned with `precondition(r, z)` (`z ≈ A⁻¹·r`),
-/// starting from `x`; same stopping rule as [`conjugate_gradient`].
-pub fn preconditioned_cg(
-    system: &System<'_>,
-    b: &[f64],
-    x: &mut [f64],
-    tolerance: f64,
-    max_iterations: usize,
-    ws: &mut Workspace,
-    mut precondition: impl FnMut(&[f64], &mut [f64]),
-) -> usize {
     let n = b.len();
-    for v in [&mut ws.r, &mut ws.z, &mut ws.p, &mut ws.ap] {
+    for v in [&mut ws.r, &mut ws.z, &mut ws.p, &mut ws.ap, &mut ws.precond] {
         v.resize(n, 0.0);
     }
+    system.diagonal(&mut ws.precond);
     system.apply(x, &mut ws.ap);
-    for ((r, b), ap) in ws.r.iter_mut().zip(b).zip(&ws.ap) {
+    for (((r, z), p), (b, (ap, d))) in
+        ws.r.iter_mut()
+            .zip(ws.z.iter_mut())
+            .zip(ws.p.iter_mut())
+            .zip(b.iter().zip(ws.ap.iter().zip(&ws.precond)))
+    {
         *r = b - ap;
+        *z = *r / d;
+        *p = *z;
     }
     let b_norm = b.iter().map(|v| v * v).sum::<f64>().sqrt().max(1e-300);
-    let mut r_norm = ws.r.iter().map(|v| v * v).sum::<f64>().sqrt();
-    if r_norm <= tolerance * b_norm {
-        return 0;
-    }
-    precondition(&ws.r, &mut ws.z);
-    ws.p.copy_from_slice(&ws.z);
     let mut rz: f64 = ws.r.iter().zip(&ws.z).map(|(r, z)| r * z).sum();
     for iteration in 0..max_iterations {
+        let r_norm = ws.r.iter().map(|v| v * v).sum::<f64>().sqrt();
         if r_norm <= tolerance * b_norm {
             return iteration;
         }
@@ -152,21 +131,20 @@ pub fn preconditioned_cg(
             return iteration;
         }
         let alpha = rz / pap;
-        for ((x, p), (r, ap)) in x
-            .iter_mut()
-            .zip(&ws.p)
-            .zip(ws.r.iter_mut().zip(&ws.ap))
-        {
+        for ((x, p), ((r, ap), (z, d))) in x.iter_mut().zip(&ws.p).zip(
+            ws.r.iter_mut()
+                .zip(&ws.ap)
+                .zip(ws.z.iter_mut().zip(&ws.precond)),
+        ) {
             *x += alpha * p;
             *r -= alpha * ap;
+            *z = *r / d;
         }
-        r_norm = ws.r.iter().map(|v| v * v).sum::<f64>().sqrt();
-        precondition(&ws.r, &mut ws.z);
         let rz_next: f64 = ws.r.iter().zip(&ws.z).map(|(r, z)| r * z).sum();
         let beta = rz_next / rz;
         rz = rz_next;
-        for (p, z) in ws.p.iter_mut().zip(&ws.z) {
-            *p = z + beta * *p;
+        for i in 0..n {
+            ws.p[i] = ws.z[i] + beta * ws.p[i];
         }
     }
     max_iterations

@@ -5,8 +5,7 @@ use super::law::{LawContext, LawTerms, LinearSpringDamper, ParticleLaw};
 use super::layout::ShellLayout;
 use super::params::{TorsoParamError, TorsoParams};
 use super::skin::Skin;
-use super::factor::SystemFactor;
-use super::solver::{ContactRow, System, Workspace, conjugate_gradient, preconditioned_cg};
+use super::solver::{ContactRow, System, Workspace, conjugate_gradient};
 use super::tissue_laws::{DepthDampingLaw, MaxwellBranch, PowerSpring};
 use crate::sim::vec3::{add, cross, scale, sub};
 
@@ -49,10 +48,6 @@ pub struct Torso {
     rows: Vec<ContactRow>,
     samples: Vec<Sample>,
     ws: Workspace,
-    /// Cholesky factor of the contact-free system (built at the first step); `None`
-    /// with `factor_failed` when it could not be factored (Jacobi CG then).
-    factor: Option<SystemFactor>,
-    factor_failed: bool,
     last_iterations: usize,
     previous_probe_velocity: Option<[f64; 3]>,
 }
@@ -132,8 +127,6 @@ impl Torso {
             rows: Vec::new(),
             samples: Vec::new(),
             ws: Workspace::default(),
-            factor: None,
-            factor_failed: false,
             last_iterations: 0,
             layout,
         })
@@ -433,68 +426,26 @@ impl Torso {
         }
     }
 
-    /// Solve for the end-of-step velocities into `scratch`: directly with the cached
-    /// factor when the system is the factored one (no contact, linear laws), else by CG
-    /// warm-started from `v` and preconditioned with that factor.
+    /// Solve for the end-of-step velocities into `scratch` (warm-started from `v`).
     fn solve(&mut self, dt: f64) {
-        let area = (self.volume_k > 0.0).then_some(self.layout.area.as_slice());
+        let _ = dt;
+        self.scratch.copy_from_slice(&self.v);
         let system = System {
             diag: &self.diag,
             edges: &self.layout.edges,
             edge_coef: dt * self.edge_c + dt * dt * self.edge_k,
-            volume: area.map(|a| (a, dt * dt * self.volume_k)),
+            volume: (self.volume_k > 0.0)
+                .then_some((self.layout.area.as_slice(), dt * dt * self.volume_k)),
             contacts: &self.rows,
         };
-        if self.factor.is_none() && !self.factor_failed {
-            match SystemFactor::new(&system) {
-                Ok(factor) => self.factor = Some(factor),
-                Err(e) => {
-                    tracing::warn!("torso: {e}; solving by Jacobi CG");
-                    self.factor_failed = true;
-                }
-            }
-        }
-        if let Some(factor) = &mut self.factor
-            && !factor.close_to(&system)
-            && let Err(e) = factor.refactor(&system)
-        {
-            tracing::warn!("torso: {e}; solving by Jacobi CG");
-            self.factor = None;
-            self.factor_failed = true;
-        }
-        match &mut self.factor {
-            Some(factor) if self.rows.is_empty() && factor.matches(&system) => {
-                self.scratch.copy_from_slice(&self.rhs);
-                factor.solve(&mut self.scratch, area);
-                self.last_iterations = 0;
-            }
-            Some(factor) => {
-                self.scratch.copy_from_slice(&self.v);
-                self.last_iterations = preconditioned_cg(
-                    &system,
-                    &self.rhs,
-                    &mut self.scratch,
-                    CG_TOLERANCE,
-                    CG_MAX_ITERATIONS,
-                    &mut self.ws,
-                    |r, z| {
-                        z.copy_from_slice(r);
-                        factor.solve(z, area);
-                    },
-                );
-            }
-            None => {
-                self.scratch.copy_from_slice(&self.v);
-                self.last_iterations = conjugate_gradient(
-                    &system,
-                    &self.rhs,
-                    &mut self.scratch,
-                    CG_TOLERANCE,
-                    CG_MAX_ITERATIONS,
-                    &mut self.ws,
-                );
-            }
-        }
+        self.last_iterations = conjugate_gradient(
+            &system,
+            &self.rhs,
+            &mut self.scratch,
+            CG_TOLERANCE,
+            CG_MAX_ITERATIONS,
+            &mut self.ws,
+        );
     }
 
     /// Normal force of sample `s` at the solved end-of-step state (may be negative).
