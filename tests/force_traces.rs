@@ -10,7 +10,10 @@
 use echogym::sim::controller::{Osc, OscParams};
 use echogym::sim::scene::{Scene, SceneParams};
 
-const TRACE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data/press_slide_trace.csv");
+const TRACE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../tests/data/press_slide_trace.csv"
+);
 /// Allowed difference of the F/T reading's z [N]: absolute plus relative part.
 const FORCE_TOLERANCE: (f64, f64) = (0.05, 0.01);
 /// Allowed difference of the deepest indentation [m]: absolute plus relative part.
@@ -45,10 +48,7 @@ fn press_slide() -> Vec<[f64; 4]> {
         scene.step(&tau);
         if k % 5 == 4 {
             let torso = scene.torso().unwrap();
-            let deepest = torso
-                .displacements()
-                .iter()
-                .fold(0.0f64, |m, u| m.max(-u));
+            let deepest = torso.displacements().iter().fold(0.0f64, |m, u| m.max(-u));
             rows.push([
                 t + 0.002,
                 scene.ft_reading()[2],

@@ -14,6 +14,7 @@
 
 mod breathing;
 mod contact;
+mod factor;
 mod law;
 mod layout;
 mod params;
