@@ -27,15 +27,11 @@ fn main() {
             .and_then(|i| args.get(i + 1))
             .cloned()
     };
-    let number = |name: &str, default: f64| {
-        value(name)
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(default)
-    };
+    let number =
+        |name: &str, default: f64| value(name).and_then(|v| v.parse().ok()).unwrap_or(default);
     let env_id = value("--env").unwrap_or_else(|| "echogym/UltrasoundScan-v0".to_owned());
     let config = value("--config").unwrap_or_else(|| {
-        r#"{"controller": {"control_freq": 20.0}, "task": {"early_termination": false}}"#
-            .to_owned()
+        r#"{"controller": {"control_freq": 20.0}, "task": {"early_termination": false}}"#.to_owned()
     });
     let config: serde_json::Value = serde_json::from_str(&config).expect("--config is JSON");
     let (seconds, repeats) = (number("--seconds", 2.0), number("--repeats", 3.0) as usize);
