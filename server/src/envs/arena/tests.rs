@@ -569,7 +569,11 @@ fn ultrasound_decimation_forms_an_image_every_n_steps() {
         });
         let (spec, mut env) = make("echogym/CalibrationPress-v0", config);
         let field = spec.field("ultrasound").unwrap().clone();
-        let coupled = spec.info_keys.iter().position(|k| k == "us_coupled").unwrap();
+        let coupled = spec
+            .info_keys
+            .iter()
+            .position(|k| k == "us_coupled")
+            .unwrap();
         let mut record = vec![0u8; spec.obs_record_bytes];
         let mut info = vec![0.0f32; spec.info_keys.len()];
         env.reset(
@@ -589,13 +593,23 @@ fn ultrasound_decimation_forms_an_image_every_n_steps() {
     };
     let (every, decimated) = (run(1), run(5));
     let changes = |t: &[(Vec<u8>, f32)]| t.windows(2).filter(|w| w[0] != w[1]).count();
-    assert!(changes(&every) > 100, "the undecimated image changes while pressing");
+    assert!(
+        changes(&every) > 100,
+        "the undecimated image changes while pressing"
+    );
     for (k, (d, e)) in decimated.iter().zip(&every).enumerate() {
         let step = k + 1;
         if step % 5 == 0 {
-            assert_eq!(d, e, "step {step}: decimated image differs where it is formed");
+            assert_eq!(
+                d, e,
+                "step {step}: decimated image differs where it is formed"
+            );
         } else if step > 5 {
-            assert_eq!(d, &decimated[k - 1], "step {step}: image changed between images");
+            assert_eq!(
+                d,
+                &decimated[k - 1],
+                "step {step}: image changed between images"
+            );
         }
     }
     let config = serde_json::json!({"ultrasound": {"every_n_steps": 0}});
