@@ -19,6 +19,10 @@ robosuite side (benches/envs_robosuite.py in benches/.venv-peers, one process, o
 `Lift` Panda OSC_POSE at 20 Hz and UR5e OSC_POSE at 500 Hz.
 Each figure is the median of `--repeats` runs of `--seconds`. Prints a markdown table,
 writes benches/results/envs.{md,json}, and ends with one `RESULT key=value ...` line.
+`--scaling`: (a) with 16 envs at 1 server thread (pinned to one core) and at 2 threads
+(both cores, shared with the client), the efficiency, and the model of
+docs/benchmarks.md (per-env cost from `--env-step-json`, benches/env_step.rs in-process
+on one core; the rest of the batch time is the dispatcher's) predicting 4/8/16 threads.
 """
 
 from __future__ import annotations
@@ -100,6 +104,63 @@ def env_steps_per_s(server: str, env_id: str, num_envs: int, config: dict, secon
     return steps * num_envs / elapsed
 
 
+SCALING_ENVS = 16
+
+
+def scaling(seconds: float, repeats: int, env_step: dict | None) -> tuple[list[str], dict]:
+    """env-steps/s of UltrasoundScan-v0 at 20 Hz, 16 envs, at 1 and 2 server threads, and
+    the model's prediction for 4/8/16 threads (see docs/benchmarks.md)."""
+    env_id, _, config = WORKLOADS["scan_20hz"]
+    rates: dict[int, list[float]] = {}
+    null: list[float] = []
+    for threads in (1, 2):
+        cpus = {SERVER_CPU} if threads == 1 else set(range(os.cpu_count() or 1))
+        os.sched_setaffinity(0, {CLIENT_CPU} if threads == 1 else cpus)
+        with BenchServer(f"envs-scaling-{threads}", "--threads", str(threads)) as server:
+            for tid in os.listdir(f"/proc/{server.process.pid}/task"):
+                os.sched_setaffinity(int(tid), cpus)
+            rates[threads] = [env_steps_per_s(server.name, env_id, SCALING_ENVS, config, seconds)
+                              for _ in range(repeats)]
+            if threads == 1:
+                # The dispatcher and transport alone: a batch of Null-v0 envs.
+                null = [env_steps_per_s(server.name, "echogym/Null-v0", SCALING_ENVS, {}, seconds)
+                        for _ in range(repeats)]
+            print(f"scaling {threads} threads: {rates[threads]}", file=sys.stderr)
+    os.sched_setaffinity(0, {CLIENT_CPU})
+    med = {t: statistics.median(v) for t, v in rates.items()}
+    result: dict = {"envs": SCALING_ENVS, "runs": rates, "median": med,
+                    "efficiency_2": med[2] / (2 * med[1]),
+                    "null_runs": null, "null_median": statistics.median(null)}
+    lines = [
+        "",
+        f"Scaling, UltrasoundScan-v0 20 Hz, {SCALING_ENVS} envs in one batch: 1 server thread "
+        f"(pinned) {med[1]:,.0f} env-steps/s (runs {', '.join(f'{r:,.0f}' for r in rates[1])}); "
+        f"2 threads (both cores, shared with the client) {med[2]:,.0f} "
+        f"(runs {', '.join(f'{r:,.0f}' for r in rates[2])}); efficiency at 2: "
+        f"{result['efficiency_2']:.2f}. Null-v0 batch {SCALING_ENVS}, 1 thread: "
+        f"{result['null_median']:,.0f} env-steps/s.",
+    ]
+    # Model (docs/benchmarks.md): an env step costs c on a worker thread (envs spread over
+    # N threads), plus δ serial in the dispatcher and transport (Null-v0's whole cost):
+    # rate(N) = 1 / (c/N + δ). c from 1 thread in the server; c_inproc (benches/env_step)
+    # shows how much of c is the env itself.
+    delta = 1.0 / result["null_median"]
+    c = max(1.0 / med[1] - delta, 0.0)
+    predicted = {n: 1.0 / (c / n + delta) for n in (1, 2, 4, 8, 16)}
+    result["model"] = {"per_env_step_s": c, "dispatcher_per_env_step_s": delta,
+                       "predicted": predicted,
+                       "efficiency": {n: predicted[n] / (n * predicted[1]) for n in predicted}}
+    inproc = (f" (in-process, benches/env_step.rs: "
+              f"{1e6 / env_step['env_steps_per_s']['median']:,.0f} µs)" if env_step else "")
+    lines.append(
+        f"Model (unchecked beyond 2 threads): per-env step c = {c * 1e6:,.0f} µs{inproc}, "
+        f"dispatcher δ = {delta * 1e6:.2f} µs per env step; rate(N) = 1/(c/N + δ) predicts "
+        + ", ".join(f"{n} threads {predicted[n]:,.0f} ({result['model']['efficiency'][n]:.3f})"
+                    for n in (2, 4, 8, 16))
+        + " env-steps/s (efficiency), with ≥ 1 env per thread and memory bandwidth not binding.")
+    return lines, result
+
+
 def robosuite(seconds: float, repeats: int) -> dict | None:
     """Run the robosuite side in its own virtualenv; None when unavailable."""
     python = os.path.join(os.path.dirname(__file__), ".venv-peers", "bin", "python")
@@ -120,6 +181,9 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--no-peers", action="store_true", help="skip robosuite")
     parser.add_argument("--ultrasound-json", help="output of the ultrasound imaging bench")
+    parser.add_argument("--env-step-json", help="output of benches/env_step.rs (per-env cost)")
+    parser.add_argument("--scaling", action="store_true",
+                        help="also measure 1 and 2 server threads and model 4/8/16")
     args = parser.parse_args()
     os.sched_setaffinity(0, {CLIENT_CPU})
 
@@ -133,6 +197,12 @@ def main() -> None:
                     env_steps_per_s(server.name, env_id, n, config, args.seconds, name,
                                     ACTION_SCALE.get(name, 0.3)))
                 print(f"{name}: {runs[name][-1]:,.0f} env-steps/s", file=sys.stderr)
+    env_step = None
+    if args.env_step_json:
+        with open(args.env_step_json) as f:
+            env_step = json.load(f)
+    scaling_lines, scaling_result = (scaling(args.seconds, args.repeats, env_step)
+                                     if args.scaling else ([], None))
     os.sched_setaffinity(0, set(range(os.cpu_count() or 1)))
     peers = None if args.no_peers else robosuite(args.seconds, args.repeats)
 
@@ -190,12 +260,22 @@ def main() -> None:
             f"{', '.join(f'{r:,.0f}' for r in peers['lift_ur5e_osc_500hz']['runs'])} | |",
             "",
             f"Ratios (same run): scan 20 Hz / Lift 20 Hz = {med['scan_20hz'] / lift20:.1f}× "
-            f"(target ≥ 5×); scan 500 Hz batch 16 / Lift UR5e 500 Hz = "
+            f"(target ≥ 6×: {'met' if med['scan_20hz'] / lift20 >= 6 else 'MISSED'}); scan 500 Hz batch 16 / Lift UR5e 500 Hz = "
             f"{med['scan_500hz_batch16'] / ur500:.1f}×. robosuite reset (hard) "
             f"{peers['lift_reset_ms']['median']:.0f} ms.",
         ]
         result["ratio_scan20_vs_lift20"] = med["scan_20hz"] / lift20
         result["ratio_scan500_vs_lift_ur5e500"] = med["scan_500hz_batch16"] / ur500
+    if env_step:
+        lines.append(
+            f"In-process (benches/env_step.rs, no transport, one core): UltrasoundScan-v0 20 Hz "
+            f"{env_step['env_steps_per_s']['median']:,.0f} env-steps/s.")
+        result["env_step"] = env_step
+    lines += scaling_lines
+    if scaling_result:
+        result["scaling"] = scaling_result
+    result["load_average"] = os.getloadavg()
+    lines.append(f"Load average at the end: {', '.join(f'{x:.2f}' for x in os.getloadavg())}.")
     table = "\n".join(lines)
     print(table)
     os.makedirs("benches/results", exist_ok=True)
@@ -209,6 +289,10 @@ def main() -> None:
         kv += f" images_per_s_128={result['imaging']['images_per_s_128']['median']:.0f}"
     if peers:
         kv += f" ratio_vs_lift={result['ratio_scan20_vs_lift20']:.2f}"
+    if scaling_result:
+        kv += (f" scaling_1t={scaling_result['median'][1]:.0f}"
+               f" scaling_2t={scaling_result['median'][2]:.0f}"
+               f" scaling_eff2={scaling_result['efficiency_2']:.2f}")
     print(f"RESULT {kv}")
 
 

@@ -229,8 +229,16 @@ impl<T: Task> ArenaEnv<T> {
     }
 
     /// Form this step's ultrasound image (before the reward, which may use it).
+    /// Form the ultrasound image on reset (frame 0) and every `every_n_steps` steps.
     fn image(&mut self) {
-        if let Some(us) = &mut self.ultrasound {
+        let every = self
+            .config
+            .ultrasound
+            .as_ref()
+            .map_or(1, |c| c.every_n_steps as u64);
+        if let Some(us) = &mut self.ultrasound
+            && self.frame.is_multiple_of(every)
+        {
             us.render(&self.scene);
         }
     }

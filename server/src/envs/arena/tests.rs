@@ -557,3 +557,68 @@ fn a_camera_with_every_holds_its_frame_between_renders() {
     assert_eq!(depth(5), depth(3));
     assert_ne!(depth(6), depth(3));
 }
+
+#[test]
+fn ultrasound_decimation_forms_an_image_every_n_steps() {
+    // A pressing probe changes its image every step; with `every_n_steps: 5` the image
+    // and `us_coupled` change only on steps 5, 10, ... and match the undecimated run there.
+    let run = |every: usize| {
+        let config = serde_json::json!({
+            "task": {"site": "center", "hold_time": 0.2},
+            "ultrasound": {"lines": 32, "rows": 64, "every_n_steps": every},
+        });
+        let (spec, mut env) = make("echogym/CalibrationPress-v0", config);
+        let field = spec.field("ultrasound").unwrap().clone();
+        let coupled = spec
+            .info_keys
+            .iter()
+            .position(|k| k == "us_coupled")
+            .unwrap();
+        let mut record = vec![0u8; spec.obs_record_bytes];
+        let mut info = vec![0.0f32; spec.info_keys.len()];
+        env.reset(
+            Some(3),
+            &mut EnvOutput::new(&spec.observation, &mut record, &mut info),
+        );
+        let mut trace = Vec::new();
+        for _ in 0..600 {
+            env.step(
+                &vec![0.0; spec.action.size],
+                &mut EnvOutput::new(&spec.observation, &mut record, &mut info),
+            );
+            let image = record[field.offset..field.offset + field.byte_len()].to_vec();
+            trace.push((image, info[coupled]));
+        }
+        trace
+    };
+    let (every, decimated) = (run(1), run(5));
+    let changes = |t: &[(Vec<u8>, f32)]| t.windows(2).filter(|w| w[0] != w[1]).count();
+    assert!(
+        changes(&every) > 100,
+        "the undecimated image changes while pressing"
+    );
+    for (k, (d, e)) in decimated.iter().zip(&every).enumerate() {
+        let step = k + 1;
+        if step % 5 == 0 {
+            assert_eq!(
+                d, e,
+                "step {step}: decimated image differs where it is formed"
+            );
+        } else if step > 5 {
+            assert_eq!(
+                d,
+                &decimated[k - 1],
+                "step {step}: image changed between images"
+            );
+        }
+    }
+    let config = serde_json::json!({"ultrasound": {"every_n_steps": 0}});
+    let registry = EnvRegistry::default();
+    let err = registry
+        .get("echogym/CalibrationPress-v0")
+        .unwrap()
+        .spec(&map(config))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("ultrasound.every_n_steps"), "{err}");
+}

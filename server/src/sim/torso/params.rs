@@ -92,6 +92,12 @@ pub struct TorsoParams {
     /// weight, σ = 4 cm: wider than the smoothing length, so the scale shows in the
     /// contact stiffness). Default none.
     pub stiffness_sites: Vec<SiteStiffness>,
+    /// Multi-rate stepping: while no probe face point can reach the skin within this
+    /// many physics steps (2 mm margin, speeds of probe and skin included), the torso
+    /// takes one implicit step of this many `dt` instead of one per `dt`, lagging the
+    /// scene by less than that window (breathing moves the skin < 0.1 mm in it). Any
+    /// probe within reach steps it at `dt`. Default 4; 1 turns it off.
+    pub free_step_multiple: usize,
 }
 
 /// A local stiffness scale on the torso's top.
@@ -130,6 +136,7 @@ impl Default for TorsoParams {
             second_relaxation: None,
             moving_mass: 0.0,
             stiffness_sites: Vec::new(),
+            free_step_multiple: 4,
         }
     }
 }
@@ -189,6 +196,12 @@ impl TorsoParams {
                 self.size[i],
             )?;
         }
+        check(
+            "free_step_multiple",
+            (1..=10).contains(&self.free_step_multiple),
+            "an integer in 1..=10",
+            self.free_step_multiple as f64,
+        )?;
         let smallest = self.size[0].min(self.size[1]).min(self.size[2]);
         check(
             "spacing",

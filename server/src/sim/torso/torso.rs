@@ -1,6 +1,7 @@
 //! [`Torso`]: the soft torso's state and its step (see the `torso` module docs).
 
 use super::contact::{ContactWrench, ProbeFace, ProbeKinematics};
+use super::factor::SystemFactor;
 use super::law::{LawContext, LawTerms, LinearSpringDamper, ParticleLaw};
 use super::layout::ShellLayout;
 use super::params::{TorsoParamError, TorsoParams};
@@ -15,6 +16,12 @@ const CG_TOLERANCE: f64 = 1e-6;
 const CG_MAX_ITERATIONS: usize = 200;
 /// Velocity scale of the friction regularisation [m/s].
 const FRICTION_SMOOTHING: f64 = 1e-3;
+/// Contact-free step sizes whose factors are kept (the physics step and the multi-rate
+/// step); a third evicts the oldest.
+const CACHED_FACTORS: usize = 2;
+/// Clearance below which the probe counts as within reach of the skin \[m\] (see
+/// `TorsoParams::free_step_multiple`).
+const REACH_MARGIN: f64 = 0.002;
 
 /// One probe face sample during a step.
 #[derive(Debug, Clone, Copy)]
@@ -48,7 +55,14 @@ pub struct Torso {
     rows: Vec<ContactRow>,
     samples: Vec<Sample>,
     ws: Workspace,
+    /// Cholesky factors of the contact-free system, one per step size (see `factor`);
+    /// `factor_failed` when one could not be built (Jacobi CG from then on).
+    factors: Vec<SystemFactor>,
+    factor_failed: bool,
     last_iterations: usize,
+    /// Physics steps (and their total time \[s\]) not yet taken while the probe is clear.
+    pending_steps: usize,
+    pending_time: f64,
     previous_probe_velocity: Option<[f64; 3]>,
 }
 
@@ -127,7 +141,11 @@ impl Torso {
             rows: Vec::new(),
             samples: Vec::new(),
             ws: Workspace::default(),
+            factors: Vec::with_capacity(CACHED_FACTORS),
+            factor_failed: false,
             last_iterations: 0,
+            pending_steps: 0,
+            pending_time: 0.0,
             layout,
         })
     }
@@ -167,6 +185,7 @@ impl Torso {
     pub fn set_state(&mut self, u: &[f64], v: &[f64]) {
         self.u.copy_from_slice(u);
         self.v.copy_from_slice(v);
+        (self.pending_steps, self.pending_time) = (0, 0.0);
     }
 
     /// Simulated time \[s\].
@@ -308,13 +327,68 @@ impl Torso {
     }
 
     /// Advance one step of `dt` seconds with the probe (if any) held at its start-of-step
-    /// state; returns the wrench the skin exerts on the probe during the step.
+    /// state; returns the wrench the skin exerts on the probe during the step. While
+    /// the probe is out of reach, steps are gathered into one longer implicit step
+    /// (`TorsoParams::free_step_multiple`).
     pub fn step(&mut self, dt: f64, probe: Option<&ProbeKinematics>) -> ContactWrench {
+        let multiple = self.params.free_step_multiple;
+        if multiple > 1 && self.probe_clear(dt * multiple as f64, probe) {
+            self.pending_steps += 1;
+            self.pending_time += dt;
+            if self.pending_steps >= multiple {
+                self.take_pending();
+            }
+            let mut wrench = ContactWrench::default();
+            self.add_moving_mass(dt, probe, &mut wrench);
+            return wrench;
+        }
+        self.take_pending();
+        self.implicit_step(dt, probe, true)
+    }
+
+    /// Catch up with the steps gathered while the probe was clear (one implicit step).
+    fn take_pending(&mut self) {
+        if self.pending_steps > 0 {
+            // A full window recurs (its factor is kept); a partial catch-up does not.
+            let full = self.pending_steps == self.params.free_step_multiple;
+            let dt = self.pending_time;
+            (self.pending_steps, self.pending_time) = (0, 0.0);
+            self.implicit_step(dt, None, full);
+        }
+    }
+
+    /// Whether no face point of `probe` can come within [`REACH_MARGIN`] of the skin in
+    /// the next `window` seconds at the current speeds of probe and skin (conservative:
+    /// the highest, fastest-rising top particle stands for the whole skin).
+    fn probe_clear(&self, window: f64, probe: Option<&ProbeKinematics>) -> bool {
+        let Some(probe) = probe else { return true };
+        let top = self.layout.top_len();
+        let highest = self.u[..top].iter().fold(f64::MIN, |m, &u| m.max(u));
+        let rising = self.v[..top].iter().fold(0.0f64, |m, &v| m.max(v));
+        let skin = self.params.top_z() + highest + 2.0 * rising * window;
+        self.face_offsets.iter().all(|offset| {
+            let point = probe.face_point(*offset);
+            if !self.skin.covers(point[0], point[1]) {
+                return true;
+            }
+            let falling = probe.point_velocity(point)[2].min(0.0);
+            point[2] + 2.0 * falling * window - skin > REACH_MARGIN
+        })
+    }
+
+    /// One backward-Euler step of `dt` (see the module docs of `solver`).
+    /// `cacheable`: the step size recurs, so a factor of its system is worth keeping.
+    fn implicit_step(
+        &mut self,
+        dt: f64,
+        probe: Option<&ProbeKinematics>,
+        cacheable: bool,
+    ) -> ContactWrench {
         self.assemble(dt);
         self.gather_samples(dt, probe);
         let mut passes = 0;
         loop {
-            self.solve(dt);
+            self.solve(dt, cacheable);
             passes += 1;
             // Drop samples the solve says pull the skin (adhesion), then solve again.
             let before = self.rows.len();
@@ -426,18 +500,44 @@ impl Torso {
         }
     }
 
-    /// Solve for the end-of-step velocities into `scratch` (warm-started from `v`).
-    fn solve(&mut self, dt: f64) {
-        let _ = dt;
-        self.scratch.copy_from_slice(&self.v);
+    /// Solve for the end-of-step velocities into `scratch`: off contact with a kept
+    /// factor of exactly this system (built on the first contact-free step of a
+    /// `cacheable` size), else by Jacobi CG warm-started from `v`.
+    fn solve(&mut self, dt: f64, cacheable: bool) {
+        let area = (self.volume_k > 0.0).then_some(self.layout.area.as_slice());
         let system = System {
             diag: &self.diag,
             edges: &self.layout.edges,
             edge_coef: dt * self.edge_c + dt * dt * self.edge_k,
-            volume: (self.volume_k > 0.0)
-                .then_some((self.layout.area.as_slice(), dt * dt * self.volume_k)),
+            volume: area.map(|a| (a, dt * dt * self.volume_k)),
             contacts: &self.rows,
         };
+        if self.rows.is_empty() && !self.factor_failed {
+            let known_step = self.factors.iter().any(|f| f.same_step(&system));
+            if cacheable && !known_step {
+                // A new step size (a nonlinear law's changed diagonal is not one: it
+                // would refactor every step, so it takes CG).
+                match SystemFactor::new(&system) {
+                    Ok(factor) => {
+                        if self.factors.len() == CACHED_FACTORS {
+                            self.factors.remove(0);
+                        }
+                        self.factors.push(factor);
+                    }
+                    Err(e) => {
+                        tracing::warn!("torso: {e}; solving by Jacobi CG");
+                        self.factor_failed = true;
+                    }
+                }
+            }
+            if let Some(factor) = self.factors.iter_mut().find(|f| f.matches(&system)) {
+                self.scratch.copy_from_slice(&self.rhs);
+                factor.solve(&mut self.scratch, area);
+                self.last_iterations = 0;
+                return;
+            }
+        }
+        self.scratch.copy_from_slice(&self.v);
         self.last_iterations = conjugate_gradient(
             &system,
             &self.rhs,
@@ -467,17 +567,13 @@ impl Torso {
         let kc = self.params.contact_stiffness * self.sample_area;
         let cc = self.params.contact_damping * self.sample_area;
         let top = self.params.top_z();
-        let tensile: Vec<usize> = self
-            .samples
-            .iter()
-            .enumerate()
-            .filter(|(_, s)| self.normal_force(dt, s) < 0.0)
-            .map(|(k, _)| k)
-            .collect();
-        if tensile.is_empty() {
-            return;
-        }
-        for &k in tensile.iter().rev() {
+        // Back to front, so removing a sample leaves the earlier ones' rows in place
+        // (and no list of them is allocated).
+        for k in (0..self.samples.len()).rev() {
+            let tensile = self.normal_force(dt, &self.samples[k]) < 0.0;
+            if !tensile {
+                continue;
+            }
             let s = self.samples.remove(k);
             let row = self.rows.remove(s.row);
             let skin_u: f64 = row.weights.iter().map(|&(i, w)| w * self.u[i]).sum();

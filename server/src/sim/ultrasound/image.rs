@@ -76,6 +76,10 @@ pub struct UltrasoundConfig {
     /// Tissue whose visibility and contrast are reported (a tissue name). Default
     /// `kidney_cortex`.
     pub target: String,
+    /// Decimation: form an image every this many env steps (after reset, then on steps
+    /// k, 2k, ...); the steps between repeat the last image and its `us_*` info. At
+    /// 500 Hz control, 25 gives 20 images/s per env. Default 1 (every step).
+    pub every_n_steps: usize,
 }
 
 impl Default for UltrasoundConfig {
@@ -93,6 +97,7 @@ impl Default for UltrasoundConfig {
             speckle_seed: 0,
             reward_weight: 0.0,
             target: "kidney_cortex".to_owned(),
+            every_n_steps: 1,
         }
     }
 }
@@ -166,6 +171,12 @@ impl UltrasoundConfig {
             return err(
                 "ultrasound.gel",
                 format!("must be in (0, 0.01] m, got {}", self.gel),
+            );
+        }
+        if !(1..=10_000).contains(&self.every_n_steps) {
+            return err(
+                "ultrasound.every_n_steps",
+                format!("must be in [1, 10000], got {}", self.every_n_steps),
             );
         }
         if !(-100.0..=100.0).contains(&self.reward_weight) {
