@@ -5,8 +5,9 @@ against one server, env-steps/s of
   gymnasium vector env (zero-copy, random actions in ±0.3, same-step autoreset: the
   envs benchmark's method), and
 - ``collector``: torchrl's ``MultiSyncCollector`` with ``workers`` worker processes of
-  ``envs_per_worker`` envs each, the default PPO actor choosing the actions (inference,
-  transforms and the collector's copies included; no PPO update),
+  ``envs_per_worker`` envs each, the default PPO actor choosing the actions through its
+  collection path (:class:`echogym.train.models.GaussianSampler`, as the trainer collects;
+  inference, transforms and the collector's copies included; no PPO update),
 
 and prints their ratio. Both use the same server (``--threads`` worker threads) and the
 same number of envs, so the ratio is what the collector costs on top of the envs.
@@ -27,6 +28,7 @@ import torch
 from echogym.client import connect
 from echogym.gym_vector import EchoVectorEnv
 from echogym.train.config import TrainConfig
+from echogym.train.models import GaussianSampler
 from echogym.train.envs import default_obs_keys, env_factory
 from echogym.train.networks import build_networks
 from echogym.train.timing import timed_collection
@@ -65,7 +67,8 @@ def collector_rate(env_id: str, workers: int, envs_per_worker: int, config: dict
                            server)
     frames = workers * envs_per_worker * steps_per_batch
     warmup = 2
-    collector = MultiSyncCollector([make_env] * workers, actor, frames_per_batch=frames,
+    collector = MultiSyncCollector([make_env] * workers, GaussianSampler(actor),
+                                   frames_per_batch=frames,
                                    total_frames=frames * (batches + warmup), device="cpu")
     count, elapsed = timed_collection(collector, warmup)
     return count / elapsed
