@@ -124,3 +124,42 @@ def test_misuse_is_refused_naming_the_env(server):
     with pytest.raises(ValueError, match="group_size"):
         EchoAsyncVectorEnv("echogym/Null-v0", 4, 2, group_size=3)
     envs.close()
+
+
+def test_torchrl_async_collector_pairs_each_env_with_its_own_transitions(server):
+    torch = pytest.importorskip("torch")
+    from tensordict.nn import TensorDictModule
+
+    from echogym.torchrl_async import AsyncCollector
+
+    class RandomPolicy(torch.nn.Module):
+        def forward(self, observation):
+            return torch.rand(observation.shape[0], 7) * 2 - 1
+
+    policy = TensorDictModule(RandomPolicy(), in_keys=["observation"], out_keys=["action"])
+    collector = AsyncCollector("echogym/Null-v0", 8, 4, policy, frames_per_batch=64,
+                               total_frames=256, group_size=2, seed=0, max_episode_steps=20)
+    batches = 0
+    last_step = {}
+    for data in collector:
+        batches += 1
+        assert data.numel() == 64
+        obs, action, nxt = data["observation"], data["action"], data["next", "observation"]
+        # Null-v0 echoes the action and counts the episode's steps in obs[0].
+        torch.testing.assert_close(nxt[:, 1:8], action)
+        bad = (nxt[:, 0] != obs[:, 0] + 1).nonzero().flatten()
+        assert len(bad) == 0, f"transitions whose step count does not follow: {bad.tolist()}"
+        done = data["next", "done"].squeeze(-1)
+        assert (done == (nxt[:, 0] == 20)).all(), "episodes end at the horizon"
+        # An env's transitions come in order: each starts where its previous one ended
+        # (or from its reset).
+        for row in range(64):
+            env = int(data["env_id"][row])
+            if env in last_step:
+                prev_next, prev_done = last_step[env]
+                expected = 0.0 if prev_done else prev_next
+                assert float(obs[row, 0]) == expected, f"env {env} skipped a transition"
+            last_step[env] = (float(nxt[row, 0]), bool(done[row]))
+    collector.shutdown()
+    assert batches == 4
+    assert sorted(last_step) == list(range(8))
