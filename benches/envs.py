@@ -13,6 +13,9 @@ env-steps/s per server core:
       with zero motion actions (the probe stays on the skin, so every scan line is
       formed: the image's worst case), without and with the 128×128 `ultrasound` image
       (target: within 2× of the cost without; the mean `us_coupled` is reported).
+The client side (benches/envs_client.py, skipped with `--no-client`): the async gain
+(first-ready batches against the synchronous vector env, on this server) and the torchrl
+collector ratio (on a separate 2-thread server, unpinned).
 Imaging alone: `--ultrasound-json` (benches/ultrasound.rs, one core) gives images/s with
 the probe coupled on the skin (every line formed), 128×128 and 256×256.
 robosuite side (benches/envs_robosuite.py in benches/.venv-peers, one process, one core):
@@ -35,6 +38,7 @@ import numpy as np
 
 import echogym  # noqa: F401  (registers the envs)
 from bench_server import BenchServer, machine_description
+from envs_client import async_gain, collector_ratio, table_lines
 from echogym.gym_vector import EchoVectorEnv
 
 TARGETS = {"scan_20hz": 400.0, "scan_500hz_batch16": 8000.0, "scan_20hz_depth64": 200.0}
@@ -120,6 +124,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--no-peers", action="store_true", help="skip robosuite")
     parser.add_argument("--ultrasound-json", help="output of the ultrasound imaging bench")
+    parser.add_argument("--no-client", action="store_true",
+                        help="skip the collector ratio and the async gain (envs_client.py)")
     args = parser.parse_args()
     os.sched_setaffinity(0, {CLIENT_CPU})
 
@@ -133,7 +139,12 @@ def main() -> None:
                     env_steps_per_s(server.name, env_id, n, config, args.seconds, name,
                                     ACTION_SCALE.get(name, 0.3)))
                 print(f"{name}: {runs[name][-1]:,.0f} env-steps/s", file=sys.stderr)
+        gain = None if args.no_client else async_gain(server.name, args.seconds, args.repeats)
     os.sched_setaffinity(0, set(range(os.cpu_count() or 1)))
+    collector = None
+    if not args.no_client:
+        with BenchServer("collector-bench", "--threads", "2") as collector_server:
+            collector = collector_ratio(collector_server.name, args.seconds, args.repeats)
     peers = None if args.no_peers else robosuite(args.seconds, args.repeats)
 
     med = {k: statistics.median(v) for k, v in runs.items()}
@@ -196,6 +207,11 @@ def main() -> None:
         ]
         result["ratio_scan20_vs_lift20"] = med["scan_20hz"] / lift20
         result["ratio_scan500_vs_lift_ur5e500"] = med["scan_500hz_batch16"] / ur500
+    lines += table_lines(collector, gain)
+    if collector is not None:
+        result["collector"] = collector
+    if gain is not None:
+        result["async"] = gain
     table = "\n".join(lines)
     print(table)
     os.makedirs("benches/results", exist_ok=True)
@@ -209,6 +225,10 @@ def main() -> None:
         kv += f" images_per_s_128={result['imaging']['images_per_s_128']['median']:.0f}"
     if peers:
         kv += f" ratio_vs_lift={result['ratio_scan20_vs_lift20']:.2f}"
+    if collector is not None:
+        kv += f" collector_ratio={collector['ratio']:.2f}"
+    if gain is not None:
+        kv += f" async_gain={gain['gain']:.2f}"
     print(f"RESULT {kv}")
 
 

@@ -74,6 +74,28 @@ def collector_rate(env_id: str, workers: int, envs_per_worker: int, config: dict
     return count / elapsed
 
 
+def measure(env_id: str, workers: int, envs_per_worker: int, config: dict[str, Any],
+            server: str, seconds: float, batches: int, repeats: int,
+            report: bool = True) -> dict[str, Any]:
+    """``repeats`` × (raw, collector) against ``server``: every run and the medians."""
+    total = workers * envs_per_worker
+    runs = []
+    for repeat in range(repeats):
+        raw = raw_rate(env_id, total, config, server, seconds)
+        coll = collector_rate(env_id, workers, envs_per_worker, config, server, batches)
+        row = {"repeat": repeat, "raw_env_steps_per_s": round(raw, 1),
+               "collector_env_steps_per_s": round(coll, 1), "ratio": round(coll / raw, 3)}
+        runs.append(row)
+        if report:
+            print(json.dumps(row), flush=True)
+    median = {
+        key: float(np.median([r[key] for r in runs]))
+        for key in ("raw_env_steps_per_s", "collector_env_steps_per_s", "ratio")
+    }
+    return {"env_id": env_id, "workers": workers, "envs_per_worker": envs_per_worker,
+            "runs": runs, "median": median}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m echogym.train.throughput",
                                      description=__doc__.split("\n\n")[0])
@@ -111,22 +133,10 @@ def main(argv: list[str] | None = None) -> int:
                     raise
                 time.sleep(0.05)
     try:
-        total = args.workers * args.envs_per_worker
-        results = []
-        for repeat in range(args.repeats):
-            raw = raw_rate(args.env_id, total, args.env_config, server, args.seconds)
-            coll = collector_rate(args.env_id, args.workers, args.envs_per_worker,
-                                  args.env_config, server, args.batches)
-            row = {"repeat": repeat, "raw_env_steps_per_s": round(raw, 1),
-                   "collector_env_steps_per_s": round(coll, 1), "ratio": round(coll / raw, 3)}
-            results.append(row)
-            print(json.dumps(row), flush=True)
-        med = {
-            key: float(np.median([r[key] for r in results]))
-            for key in ("raw_env_steps_per_s", "collector_env_steps_per_s", "ratio")
-        }
-        print(json.dumps({"env_id": args.env_id, "workers": args.workers,
-                          "envs_per_worker": args.envs_per_worker, "median": med}), flush=True)
+        result = measure(args.env_id, args.workers, args.envs_per_worker, args.env_config,
+                         server, args.seconds, args.batches, args.repeats)
+        del result["runs"]
+        print(json.dumps(result), flush=True)
     finally:
         if private is not None:
             private.terminate()
