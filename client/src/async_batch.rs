@@ -42,7 +42,8 @@ impl Connection {
         options: &AttachOptions,
         group_size: usize,
     ) -> Result<AsyncBatch, ControlCallError> {
-        if group_size == 0 || options.num_envs == 0 || options.num_envs % group_size != 0 {
+        if group_size == 0 || options.num_envs == 0 || !options.num_envs.is_multiple_of(group_size)
+        {
             return Err(ControlCallError::Malformed(format!(
                 "group_size {group_size} must be positive and divide num_envs {}",
                 options.num_envs
