@@ -328,7 +328,7 @@ impl Lease {
 
     /// The observations of the exchange in flight if they have arrived (never blocks).
     /// `Ok(None)`: not yet. The server's liveness is not checked here: a caller polling
-    /// several leases blocks in [`crate::wait_any`], which checks it.
+    /// several leases blocks in [`crate::AsyncBatch::recv`], which checks it.
     pub fn try_recv(&mut self) -> Result<Option<&[u8]>, LeaseError> {
         let Some(seq) = self.expect_in_flight()? else {
             unreachable!("expect_in_flight returns Some or an error")
