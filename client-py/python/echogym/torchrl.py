@@ -89,6 +89,7 @@ class EchoEnv(EnvBase):
         self._lease: NativeLease | None = None
         self._seeds: list[int | None] | None = None
         self._slots: list[tuple[tuple[Any, ...], TensorDictBase]] = []
+        self._small_keys = [*self.info_keys, "reward", "terminated", "truncated", "done"]
         self._make_specs()
 
     def _make_specs(self) -> None:
@@ -177,9 +178,14 @@ class EchoEnv(EnvBase):
             return td.to(self.device)
         if self.copy_observations:
             return td.clone()
-        # A new tensordict over the same tensors: torchrl's transforms add and delete
-        # keys of what `_step` returns, which must not reach the cached one.
-        return td.copy()
+        # A new tensordict over the same observation views (torchrl's transforms add and
+        # delete keys of what `_step` returns, which must not reach the cached one). The
+        # reward, flags and info are fresh: collectors write into the root tensordict's
+        # flags in place, and the sample's memory is read-only.
+        out = td.copy()
+        for key in self._small_keys:
+            out.set(key, out.get(key).clone())
+        return out
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs: Any) -> TensorDictBase:
         mask = None
