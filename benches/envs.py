@@ -13,6 +13,9 @@ env-steps/s per server core:
       with zero motion actions (the probe stays on the skin, so every scan line is
       formed: the image's worst case), without and with the 128×128 `ultrasound` image
       (target: within 2× of the cost without; the mean `us_coupled` is reported).
+The client side (benches/envs_client.py, skipped with `--no-client`): the async gain
+(first-ready batches against the synchronous vector env, on this server) and the torchrl
+collector ratio (on a separate 2-thread server, unpinned).
 Imaging alone: `--ultrasound-json` (benches/ultrasound.rs, one core) gives images/s with
 the probe coupled on the skin (every line formed), 128×128 and 256×256.
 robosuite side (benches/envs_robosuite.py in benches/.venv-peers, one process, one core):
@@ -39,6 +42,7 @@ import numpy as np
 
 import echogym  # noqa: F401  (registers the envs)
 from bench_server import BenchServer, machine_description
+from envs_client import async_gain, collector_ratio, table_lines
 from echogym.gym_vector import EchoVectorEnv
 
 TARGETS = {"scan_20hz": 400.0, "scan_500hz_batch16": 8000.0, "scan_20hz_depth64": 200.0}
@@ -184,6 +188,8 @@ def main() -> None:
     parser.add_argument("--env-step-json", help="output of benches/env_step.rs (per-env cost)")
     parser.add_argument("--scaling", action="store_true",
                         help="also measure 1 and 2 server threads and model 4/8/16")
+    parser.add_argument("--no-client", action="store_true",
+                        help="skip the collector ratio and the async gain (envs_client.py)")
     args = parser.parse_args()
     os.sched_setaffinity(0, {CLIENT_CPU})
 
@@ -197,6 +203,7 @@ def main() -> None:
                     env_steps_per_s(server.name, env_id, n, config, args.seconds, name,
                                     ACTION_SCALE.get(name, 0.3)))
                 print(f"{name}: {runs[name][-1]:,.0f} env-steps/s", file=sys.stderr)
+        gain = None if args.no_client else async_gain(server.name, args.seconds, args.repeats)
     env_step = None
     if args.env_step_json:
         with open(args.env_step_json) as f:
@@ -204,6 +211,10 @@ def main() -> None:
     scaling_lines, scaling_result = (scaling(args.seconds, args.repeats, env_step)
                                      if args.scaling else ([], None))
     os.sched_setaffinity(0, set(range(os.cpu_count() or 1)))
+    collector = None
+    if not args.no_client:
+        with BenchServer("collector-bench", "--threads", "2") as collector_server:
+            collector = collector_ratio(collector_server.name, args.seconds, args.repeats)
     peers = None if args.no_peers else robosuite(args.seconds, args.repeats)
 
     med = {k: statistics.median(v) for k, v in runs.items()}
@@ -276,6 +287,11 @@ def main() -> None:
         result["scaling"] = scaling_result
     result["load_average"] = os.getloadavg()
     lines.append(f"Load average at the end: {', '.join(f'{x:.2f}' for x in os.getloadavg())}.")
+    lines += table_lines(collector, gain)
+    if collector is not None:
+        result["collector"] = collector
+    if gain is not None:
+        result["async"] = gain
     table = "\n".join(lines)
     print(table)
     os.makedirs("benches/results", exist_ok=True)
@@ -293,6 +309,10 @@ def main() -> None:
         kv += (f" scaling_1t={scaling_result['median'][1]:.0f}"
                f" scaling_2t={scaling_result['median'][2]:.0f}"
                f" scaling_eff2={scaling_result['efficiency_2']:.2f}")
+    if collector is not None:
+        kv += f" collector_ratio={collector['ratio']:.2f}"
+    if gain is not None:
+        kv += f" async_gain={gain['gain']:.2f}"
     print(f"RESULT {kv}")
 
 

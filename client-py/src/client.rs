@@ -8,8 +8,35 @@ use echogym_protocol::{AutoresetMode, ControlRequest, IpcLocation};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
+use crate::async_batch::NativeAsyncBatch;
 use crate::errors::{connect_error, control_error};
 use crate::lease::NativeLease;
+
+/// What to lease, from the Python arguments.
+fn attach_options(
+    env_id: &str,
+    num_envs: usize,
+    config_json: &str,
+    autoreset_mode: &str,
+) -> PyResult<AttachOptions> {
+    let config: serde_json::Map<String, serde_json::Value> = serde_json::from_str(config_json)
+        .map_err(|e| PyValueError::new_err(format!("config must be a JSON object: {e}")))?;
+    let autoreset_mode = match autoreset_mode {
+        "disabled" => AutoresetMode::Disabled,
+        "same_step" => AutoresetMode::SameStep,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "autoreset_mode must be 'disabled' or 'same_step', got {other:?}"
+            )));
+        }
+    };
+    Ok(AttachOptions {
+        env_id: env_id.to_owned(),
+        num_envs,
+        config,
+        autoreset_mode,
+    })
+}
 
 /// A connection to a running echogym server (control channel and wake-ups).
 #[pyclass(module = "echogym._native", frozen)]
@@ -83,27 +110,30 @@ impl NativeClient {
         config_json: &str,
         autoreset_mode: &str,
     ) -> PyResult<NativeLease> {
-        let config: serde_json::Map<String, serde_json::Value> = serde_json::from_str(config_json)
-            .map_err(|e| PyValueError::new_err(format!("config must be a JSON object: {e}")))?;
-        let autoreset_mode = match autoreset_mode {
-            "disabled" => AutoresetMode::Disabled,
-            "same_step" => AutoresetMode::SameStep,
-            other => {
-                return Err(PyValueError::new_err(format!(
-                    "autoreset_mode must be 'disabled' or 'same_step', got {other:?}"
-                )));
-            }
-        };
-        let options = AttachOptions {
-            env_id: env_id.to_owned(),
-            num_envs,
-            config,
-            autoreset_mode,
-        };
+        let options = attach_options(env_id, num_envs, config_json, autoreset_mode)?;
         let lease = py
             .detach(|| self.connection.attach(&options))
             .map_err(control_error)?;
         NativeLease::new(py, lease)
+    }
+
+    /// Lease `num_envs` envs as groups of `group_size` (one lease each) for asynchronous
+    /// stepping: `send_step(actions, env_ids)` / `recv(min_envs)`.
+    #[pyo3(signature = (env_id, num_envs, group_size, config_json = "{}", autoreset_mode = "disabled"))]
+    fn attach_async(
+        &self,
+        py: Python<'_>,
+        env_id: &str,
+        num_envs: usize,
+        group_size: usize,
+        config_json: &str,
+        autoreset_mode: &str,
+    ) -> PyResult<NativeAsyncBatch> {
+        let options = attach_options(env_id, num_envs, config_json, autoreset_mode)?;
+        let batch = py
+            .detach(|| self.connection.attach_async(&options, group_size))
+            .map_err(control_error)?;
+        NativeAsyncBatch::new(py, batch)
     }
 
     /// The server name.

@@ -152,7 +152,9 @@ pub(crate) fn lease_error(e: LeaseError) -> PyErr {
         LeaseError::ActionShape { .. } | LeaseError::NonFiniteAction { .. } => {
             InvalidActionError::new_err(message)
         }
-        LeaseError::BadReset(_) => pyo3::exceptions::PyValueError::new_err(message),
+        LeaseError::BadReset(_) | LeaseError::Async(_) => {
+            pyo3::exceptions::PyValueError::new_err(message)
+        }
         LeaseError::NeedsReset { .. } => NeedsResetError::new_err(message),
         LeaseError::EnvFailure { .. } => EnvFailureError::new_err(message),
         LeaseError::VersionMismatch => VersionMismatchError::new_err(message),

@@ -19,7 +19,15 @@ const VIEW_CACHE_SLOTS: usize = 16;
 /// the view cache does not form a reference cycle the garbage collector cannot see.
 #[pyclass(module = "echogym._native", frozen)]
 pub struct SampleMemory {
-    _lease: Arc<Mutex<Lease>>,
+    _owner: Arc<dyn std::any::Any + Send + Sync>,
+}
+
+impl SampleMemory {
+    /// The base object of views into samples that `owner` (a lease or an async batch
+    /// behind a mutex) keeps mapped.
+    pub(crate) fn keeping<T: Send + 'static>(owner: Arc<Mutex<T>>) -> Self {
+        Self { _owner: owner }
+    }
 }
 
 /// A leased batch of envs on the server.
@@ -37,12 +45,7 @@ pub struct NativeLease {
 impl NativeLease {
     pub(crate) fn new(py: Python<'_>, lease: Lease) -> PyResult<Self> {
         let lease = Arc::new(Mutex::new(lease));
-        let memory = Py::new(
-            py,
-            SampleMemory {
-                _lease: lease.clone(),
-            },
-        )?;
+        let memory = Py::new(py, SampleMemory::keeping(lease.clone()))?;
         let this = lease.lock().unwrap_or_else(|p| p.into_inner());
         Ok(Self {
             layout: this.layout().clone(),

@@ -1,11 +1,12 @@
 //! `echogym._native`: the Python extension over echogym's Rust client.
 //!
 //! Thin by design: `client::NativeClient` and `lease::NativeLease` wrap
-//! `echogym_client`, `views` turns the server's shared-memory observation sample into
+//! `echogym_client` (`async_batch::NativeAsyncBatch` its asynchronous groups), `views` turns the server's shared-memory observation sample into
 //! read-only numpy arrays without copying, `errors` defines the exception tree and
 //! `cli_main` runs the `echogym` command line in-process (used by the console script and
 //! by auto-started private servers).
 
+mod async_batch;
 mod client;
 mod errors;
 mod lease;
@@ -111,6 +112,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<client::NativeClient>()?;
     m.add_class::<lease::NativeLease>()?;
     m.add_class::<lease::SampleMemory>()?;
+    m.add_class::<async_batch::NativeAsyncBatch>()?;
     m.add_function(wrap_pyfunction!(cli_main, m)?)?;
     m.add_function(wrap_pyfunction!(resolve_spec, m)?)?;
     m.add_function(wrap_pyfunction!(registered_envs, m)?)?;

@@ -107,6 +107,10 @@ pub enum LeaseError {
     /// The server answered with a status this client does not know.
     #[error("the server answered with unexpected status {0}")]
     Protocol(u32),
+    /// An asynchronous send or receive that does not fit what is in flight (an env sent
+    /// twice, env ids that split a group, a receive with nothing in flight).
+    #[error("invalid asynchronous exchange: {0}")]
+    Async(String),
     /// iceoryx2 refused a resource.
     #[error("shared-memory transport error: {0}")]
     Ipc(String),

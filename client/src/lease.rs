@@ -37,6 +37,8 @@ pub struct AttachOptions {
 pub struct Lease {
     reply: AttachReply,
     seq: u64,
+    /// The sequence number of the exchange sent and not yet received, if any.
+    in_flight: Option<u64>,
     current: Option<Sample<ipc_threadsafe::Service, [u8], ObsHeader>>,
     /// Why the lease is unusable: `Closed` after `close`, or the error that ended it.
     ended: Option<LeaseError>,
@@ -112,6 +114,7 @@ impl Lease {
         Ok(Self {
             reply,
             seq: 0,
+            in_flight: None,
             current: None,
             ended: None,
             publisher,
@@ -158,6 +161,14 @@ impl Lease {
     /// in `reset` (optional, one [`ResetFlag`] byte per env) are reset instead.
     /// Returns the observation sample payload (see [`BatchLayout`]).
     pub fn step(&mut self, actions: &[f32], reset: Option<&[u8]>) -> Result<&[u8], LeaseError> {
+        self.send_step(actions, reset)?;
+        self.recv()
+    }
+
+    /// The first half of [`Lease::step`]: send the actions and return at once, without
+    /// waiting for the observations; [`Lease::try_recv`] or [`Lease::recv`] takes them.
+    /// One exchange at a time per lease; the previous observation is released here.
+    pub fn send_step(&mut self, actions: &[f32], reset: Option<&[u8]>) -> Result<(), LeaseError> {
         let layout = &self.reply.layout;
         let expected = layout.num_envs * layout.action_size;
         if actions.len() != expected {
@@ -168,7 +179,7 @@ impl Lease {
                 action_size: layout.action_size,
             });
         }
-        self.exchange(Op::Step, Some(actions), reset, None)
+        self.send(Op::Step, Some(actions), reset, None)
     }
 
     /// Reset the envs whose `mask` byte is nonzero (all when `mask` is `None`); envs with
@@ -179,6 +190,16 @@ impl Lease {
         mask: Option<&[bool]>,
         seeds: Option<&[Option<u64>]>,
     ) -> Result<&[u8], LeaseError> {
+        self.send_reset(mask, seeds)?;
+        self.recv()
+    }
+
+    /// The first half of [`Lease::reset`] (see [`Lease::send_step`]).
+    pub fn send_reset(
+        &mut self,
+        mask: Option<&[bool]>,
+        seeds: Option<&[Option<u64>]>,
+    ) -> Result<(), LeaseError> {
         let k = self.num_envs();
         if mask.is_some_and(|m| m.len() != k) || seeds.is_some_and(|s| s.len() != k) {
             return Err(LeaseError::BadReset(format!(
@@ -199,18 +220,29 @@ impl Lease {
         let seeds: Vec<u64> = (0..k)
             .map(|i| seeds.and_then(|s| s[i]).unwrap_or(0))
             .collect();
-        self.exchange(Op::Reset, None, Some(&flags), Some(&seeds))
+        self.send(Op::Reset, None, Some(&flags), Some(&seeds))
     }
 
-    fn exchange(
+    /// True while an exchange was sent and its observations not yet received.
+    pub fn in_flight(&self) -> bool {
+        self.in_flight.is_some()
+    }
+
+    fn send(
         &mut self,
         op: Op,
         actions: Option<&[f32]>,
         flags: Option<&[u8]>,
         seeds: Option<&[u64]>,
-    ) -> Result<&[u8], LeaseError> {
+    ) -> Result<(), LeaseError> {
         if let Some(reason) = &self.ended {
             return Err(reason.clone());
+        }
+        if self.in_flight.is_some() {
+            return Err(LeaseError::Async(format!(
+                "lease {} already has an exchange in flight; receive it first",
+                self.reply.lease_id
+            )));
         }
         // Release the previous observation before asking for the next one.
         self.current = None;
@@ -250,7 +282,16 @@ impl Lease {
             return Err(self.gone());
         }
         let _ = self.connection.inner.wake.notify();
+        self.in_flight = Some(seq);
+        Ok(())
+    }
 
+    /// Wait for the observations of the exchange in flight (spin, then block; the step
+    /// deadline and the server's liveness are checked while blocked).
+    pub fn recv(&mut self) -> Result<&[u8], LeaseError> {
+        let Some(seq) = self.expect_in_flight()? else {
+            unreachable!("expect_in_flight returns Some or an error")
+        };
         let spin = self.connection.inner.options.spin;
         let subscriber = &self.subscriber;
         let obs_service = &self.obs_service;
@@ -261,19 +302,7 @@ impl Lease {
         let received = spin_then_block(
             spin,
             &self.listener,
-            || loop {
-                match subscriber.receive() {
-                    Ok(Some(sample)) => {
-                        let header = *sample.user_header();
-                        if header.seq == seq || header.status == StepStatus::ServerStopped as u32 {
-                            return Ok(Some(sample));
-                        }
-                        // A stale answer (e.g. to an exchange abandoned by an error): skip.
-                    }
-                    Ok(None) => return Ok(None),
-                    Err(e) => return Err(LeaseError::Ipc(format!("{e:?}"))),
-                }
-            },
+            || take_reply(subscriber, seq),
             || {
                 if obs_service.dynamic_config().number_of_publishers() == 0
                     || !node_alive(config, server_node)
@@ -286,15 +315,48 @@ impl Lease {
                 }
             },
         );
-        let sample = match received {
-            Ok(sample) => sample,
+        match received {
+            Ok(sample) => self.accept(sample),
             Err(e) => {
                 if matches!(e, LeaseError::ServerStopped | LeaseError::Timeout(_)) {
                     self.ended = Some(e.clone());
                 }
-                return Err(e);
+                Err(e)
             }
+        }
+    }
+
+    /// The observations of the exchange in flight if they have arrived (never blocks).
+    /// `Ok(None)`: not yet. The server's liveness is not checked here: a caller polling
+    /// several leases blocks in [`crate::AsyncBatch::recv`], which checks it.
+    pub fn try_recv(&mut self) -> Result<Option<&[u8]>, LeaseError> {
+        let Some(seq) = self.expect_in_flight()? else {
+            unreachable!("expect_in_flight returns Some or an error")
         };
+        match take_reply(&self.subscriber, seq)? {
+            Some(sample) => self.accept(sample).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    /// The seq in flight, or why there is none to receive.
+    fn expect_in_flight(&self) -> Result<Option<u64>, LeaseError> {
+        match (&self.ended, self.in_flight) {
+            (_, Some(seq)) => Ok(Some(seq)),
+            (Some(reason), None) => Err(reason.clone()),
+            (None, None) => Err(LeaseError::Async(format!(
+                "lease {} has no exchange in flight to receive",
+                self.reply.lease_id
+            ))),
+        }
+    }
+
+    /// Check a received observation sample's status and keep it as the current one.
+    fn accept(
+        &mut self,
+        sample: Sample<ipc_threadsafe::Service, [u8], ObsHeader>,
+    ) -> Result<&[u8], LeaseError> {
+        self.in_flight = None;
         let header = *sample.user_header();
         let env = header.env_index as usize;
         let element = header.element_index as usize;
@@ -319,6 +381,39 @@ impl Lease {
             return Err(error);
         }
         Ok(self.current.insert(sample).payload())
+    }
+
+    /// Whether the server of this lease still lives and the step deadline of an
+    /// exchange sent at `sent` has not passed.
+    pub(crate) fn check_alive(&mut self, sent: std::time::Instant) -> Result<(), LeaseError> {
+        let inner = &self.connection.inner;
+        let server_node: u128 = self.reply.server_node_id.parse().unwrap_or(0);
+        let error = if self.obs_service.dynamic_config().number_of_publishers() == 0
+            || !node_alive(&inner.config, server_node)
+        {
+            Some(LeaseError::ServerStopped)
+        } else if sent.elapsed() > inner.options.step_timeout {
+            Some(LeaseError::Timeout(inner.options.step_timeout))
+        } else {
+            None
+        };
+        match error {
+            Some(e) => {
+                self.ended = Some(e.clone());
+                Err(e)
+            }
+            None => Ok(()),
+        }
+    }
+
+    /// The listener the server notifies when this lease's observations are published.
+    pub(crate) fn listener(&self) -> &Listener<ipc_threadsafe::Service> {
+        &self.listener
+    }
+
+    /// The client's spin budget before blocking.
+    pub(crate) fn spin(&self) -> Duration {
+        self.connection.inner.options.spin
     }
 
     /// Why nobody received our action: the server stopped, or it dropped this lease.
@@ -367,6 +462,26 @@ impl Lease {
             Ok(ControlReply::Error(e)) if e.kind == ControlErrorKind::UnknownLease => {}
             Ok(other) => tracing::debug!(?other, "unexpected reply to detach"),
             Err(e) => tracing::debug!(error = %e, "detach failed"),
+        }
+    }
+}
+
+/// The answer to exchange `seq` if it has arrived; stale answers (to an exchange
+/// abandoned by an error) are skipped.
+fn take_reply(
+    subscriber: &Subscriber<ipc_threadsafe::Service, [u8], ObsHeader>,
+    seq: u64,
+) -> Result<Option<Sample<ipc_threadsafe::Service, [u8], ObsHeader>>, LeaseError> {
+    loop {
+        match subscriber.receive() {
+            Ok(Some(sample)) => {
+                let header = *sample.user_header();
+                if header.seq == seq || header.status == StepStatus::ServerStopped as u32 {
+                    return Ok(Some(sample));
+                }
+            }
+            Ok(None) => return Ok(None),
+            Err(e) => return Err(LeaseError::Ipc(format!("{e:?}"))),
         }
     }
 }

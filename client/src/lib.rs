@@ -8,12 +8,14 @@
 //! extension releases the GIL while waiting). Observations stay in the server's
 //! shared-memory sample until the next exchange; nothing is copied or serialized.
 
+mod async_batch;
 mod connection;
 mod error;
 mod lease;
 pub mod testing;
 mod wait;
 
+pub use async_batch::AsyncBatch;
 pub use connection::{ConnectOptions, Connection};
 pub use error::{ConnectError, ControlCallError, LeaseError};
 pub use lease::{AttachOptions, Lease};

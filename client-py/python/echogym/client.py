@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from echogym._native import NativeClient, NativeLease
+from echogym._native import NativeAsyncBatch, NativeClient, NativeLease
 from echogym.private_server import connect_or_start
 
 DEFAULT_SERVER = "default"
@@ -58,6 +58,20 @@ class Client:
     ) -> NativeLease:
         """Lease ``num_envs`` envs of ``env_id``; see :class:`echogym._native.NativeLease`."""
         return self.native.attach(env_id, num_envs, json.dumps(config or {}), autoreset_mode)
+
+    def attach_async(
+        self,
+        env_id: str,
+        num_envs: int,
+        group_size: int,
+        config: dict[str, Any] | None = None,
+        autoreset_mode: str = "disabled",
+    ) -> NativeAsyncBatch:
+        """Lease ``num_envs`` envs as groups of ``group_size`` (one lease each) for
+        asynchronous stepping; see :class:`echogym._native.NativeAsyncBatch`."""
+        return self.native.attach_async(
+            env_id, num_envs, group_size, json.dumps(config or {}), autoreset_mode
+        )
 
 
 def connect(

@@ -28,6 +28,9 @@ from torchrl.envs import EnvBase
 from echogym._native import NativeLease, resolve_spec
 from echogym.client import connect
 
+#: Sample slots whose tensordicts are kept (the native view cache keeps as many).
+_SLOT_CACHE = 16
+
 _TORCH_DTYPES = {"float32": torch.float32, "uint8": torch.uint8, "int32": torch.int32}
 
 
@@ -85,6 +88,8 @@ class EchoEnv(EnvBase):
         self._info_index = [declared.index(k) for k in keys]
         self._lease: NativeLease | None = None
         self._seeds: list[int | None] | None = None
+        self._slots: list[tuple[tuple[Any, ...], TensorDictBase]] = []
+        self._small_keys = [*self.info_keys, "reward", "terminated", "truncated", "done"]
         self._make_specs()
 
     def _make_specs(self) -> None:
@@ -133,49 +138,71 @@ class EchoEnv(EnvBase):
                 )
         return self._lease
 
-    def _obs(self, fields: tuple[np.ndarray, ...], out: dict[str, torch.Tensor]) -> None:
-        for field, array in zip(self.echo_spec["observation"], fields):
-            tensor = _tensor(array)
-            if self.device.type != "cpu":
-                tensor = tensor.to(self.device, non_blocking=False)
-            elif self.copy_observations:
-                tensor = tensor.clone()
-            out[field["name"]] = tensor
+    def _views(self, views: tuple[Any, ...]) -> TensorDictBase:
+        """The tensordict over one sample slot's views, built once per slot.
 
-    def _info(self, info: np.ndarray, out: dict[str, torch.Tensor]) -> None:
+        The native lease returns the same view tuple for a slot every time it comes round
+        (the publisher cycles a few fixed slots), so the tensors, the ``done`` buffer and
+        the tensordict (validated once, at construction) are reused: a step allocates no
+        tensor and validates nothing. ``done`` is a per-slot buffer written in place.
+        """
+        for cached_views, cached in self._slots:
+            if cached_views is views:
+                return cached
+        fields, reward, terminated, truncated, info, _, _ = views
+        n = self.num_envs
+        out: dict[str, torch.Tensor] = {}
+        for field, array in zip(self.echo_spec["observation"], fields):
+            out[field["name"]] = _tensor(array)
+        info_t = _tensor(info)
         for key, column in zip(self.info_keys, self._info_index):
-            out[key] = torch.tensor(info[:, column], dtype=torch.float32, device=self.device)
+            out[key] = info_t[:, column]
+        term = _tensor(terminated).view(n, 1)
+        trunc = _tensor(truncated).view(n, 1)
+        out["reward"] = _tensor(reward).view(n, 1)
+        out["terminated"] = term
+        out["truncated"] = trunc
+        out["done"] = torch.empty((n, 1), dtype=torch.bool)
+        td = TensorDict(out, batch_size=self.batch_size, device="cpu")
+        if len(self._slots) >= _SLOT_CACHE:
+            self._slots.pop(0)
+        # Keep the tuple itself so its identity cannot be reused by another object.
+        self._slots.append((views, td))
+        return td
+
+    def _deliver(self, views: tuple[Any, ...]) -> TensorDictBase:
+        td = self._views(views)
+        done = td.get("done")
+        torch.logical_or(td.get("terminated"), td.get("truncated"), out=done)
+        if self.device.type != "cpu":
+            return td.to(self.device)
+        if self.copy_observations:
+            return td.clone()
+        # A new tensordict over the same observation views (torchrl's transforms add and
+        # delete keys of what `_step` returns, which must not reach the cached one). The
+        # reward, flags and info are fresh: collectors write into the root tensordict's
+        # flags in place, and the sample's memory is read-only.
+        out = td.copy()
+        for key in self._small_keys:
+            out.set(key, out.get(key).clone())
+        return out
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs: Any) -> TensorDictBase:
         mask = None
         if tensordict is not None and "_reset" in tensordict.keys():
             mask = tensordict.get("_reset").reshape(self.num_envs).cpu().numpy().astype(bool)
         seeds, self._seeds = self._seeds, None
-        fields, _, _, _, info, _, _ = self.lease.reset(mask, seeds)
-        out: dict[str, torch.Tensor] = {}
-        self._obs(fields, out)
-        self._info(info, out)
-        zeros = torch.zeros((self.num_envs, 1), dtype=torch.bool, device=self.device)
-        out["done"] = zeros
-        out["terminated"] = zeros.clone()
-        out["truncated"] = zeros.clone()
-        return TensorDict(out, batch_size=self.batch_size, device=self.device)
+        # A reset's flags are zero in the sample, so `done` comes out false; a reset
+        # carries no reward.
+        return self._deliver(self.lease.reset(mask, seeds)).exclude("reward")
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
-        action = tensordict.get("action").detach().to("cpu", torch.float32).numpy()
-        fields, reward, terminated, truncated, info, _, _ = self.lease.step(
-            np.ascontiguousarray(action)
-        )
-        out: dict[str, torch.Tensor] = {}
-        self._obs(fields, out)
-        self._info(info, out)
-        term = _tensor(terminated).reshape(self.num_envs, 1).to(self.device, copy=True)
-        trunc = _tensor(truncated).reshape(self.num_envs, 1).to(self.device, copy=True)
-        out["reward"] = _tensor(reward).reshape(self.num_envs, 1).to(self.device, copy=True)
-        out["terminated"] = term
-        out["truncated"] = trunc
-        out["done"] = term | trunc
-        return TensorDict(out, batch_size=self.batch_size, device=self.device)
+        action = tensordict.get("action").detach()
+        if action.device.type != "cpu" or action.dtype != torch.float32:
+            action = action.to("cpu", torch.float32)
+        if not action.is_contiguous():
+            action = action.contiguous()
+        return self._deliver(self.lease.step(action.numpy()))
 
     def _set_seed(self, seed: int | None) -> int | None:
         if seed is None:
@@ -188,10 +215,12 @@ class EchoEnv(EnvBase):
         if self._lease is not None:
             self._lease.close()
             self._lease = None
+        self._slots.clear()
         super().close(raise_if_closed=raise_if_closed)
 
     def __getstate__(self) -> dict[str, Any]:
         # Pickled for worker processes: the lease is per process and re-taken lazily.
         state = self.__dict__.copy()
         state["_lease"] = None
+        state["_slots"] = []
         return state

@@ -42,7 +42,7 @@ from echogym.train.config import TrainConfig
 from echogym.train.envs import default_obs_keys, env_factory
 from echogym.train.eval_video import record_episode
 from echogym.train.evaluation import evaluate
-from echogym.train.models import norms
+from echogym.train.models import GaussianSampler, norms
 from echogym.train.networks import build_networks
 
 #: Builds the collector: (policy, frames_per_batch, total_frames) → an iterable collector.
@@ -303,7 +303,9 @@ class PPOTrainer:
         # one server for every worker, living as long as the run.
         # With Ray, the servers run on their nodes (started by the operator).
         self._client = None if cfg.ray_servers else connect(cfg.server, autostart=True)
-        policy = copy.deepcopy(self.actor).to("cpu")
+        # The actor's fused collection path; it holds the actor's modules under the same
+        # names, so the weight sync below loads the actor's weights into it.
+        policy = GaussianSampler(copy.deepcopy(self.actor).to("cpu"))
         collector = self.collector_builder(policy, cfg.frames_per_batch, remaining)
         collector.set_seed(cfg.seed + self.iteration * 7919)
         collector.update_policy_weights_(TensorDict.from_module(self.actor).data.cpu())

@@ -35,6 +35,7 @@ from torch import nn
 
 from echogym.train.config import TrainConfig
 from echogym.train.envs import default_obs_keys, env_factory
+from echogym.train.models import GaussianSampler
 from echogym.train.networks import build_networks
 from echogym.train.timing import timed_collection
 
@@ -152,7 +153,7 @@ def measure(
     cfg = TrainConfig(env_id=env_id, env_config=env_config)
     actor, _ = build_networks(cfg)
     collector = ray_collector(
-        actor,
+        GaussianSampler(actor),
         env_id=env_id,
         env_config=env_config,
         obs_keys=default_obs_keys(env_id, env_config),

@@ -5,8 +5,9 @@ against one server, env-steps/s of
   gymnasium vector env (zero-copy, random actions in ±0.3, same-step autoreset: the
   envs benchmark's method), and
 - ``collector``: torchrl's ``MultiSyncCollector`` with ``workers`` worker processes of
-  ``envs_per_worker`` envs each, the default PPO actor choosing the actions (inference,
-  transforms and the collector's copies included; no PPO update),
+  ``envs_per_worker`` envs each, the default PPO actor choosing the actions through its
+  collection path (:class:`echogym.train.models.GaussianSampler`, as the trainer collects;
+  inference, transforms and the collector's copies included; no PPO update),
 
 and prints their ratio. Both use the same server (``--threads`` worker threads) and the
 same number of envs, so the ratio is what the collector costs on top of the envs.
@@ -27,6 +28,7 @@ import torch
 from echogym.client import connect
 from echogym.gym_vector import EchoVectorEnv
 from echogym.train.config import TrainConfig
+from echogym.train.models import GaussianSampler
 from echogym.train.envs import default_obs_keys, env_factory
 from echogym.train.networks import build_networks
 from echogym.train.timing import timed_collection
@@ -65,10 +67,33 @@ def collector_rate(env_id: str, workers: int, envs_per_worker: int, config: dict
                            server)
     frames = workers * envs_per_worker * steps_per_batch
     warmup = 2
-    collector = MultiSyncCollector([make_env] * workers, actor, frames_per_batch=frames,
+    collector = MultiSyncCollector([make_env] * workers, GaussianSampler(actor),
+                                   frames_per_batch=frames,
                                    total_frames=frames * (batches + warmup), device="cpu")
     count, elapsed = timed_collection(collector, warmup)
     return count / elapsed
+
+
+def measure(env_id: str, workers: int, envs_per_worker: int, config: dict[str, Any],
+            server: str, seconds: float, batches: int, repeats: int,
+            report: bool = True) -> dict[str, Any]:
+    """``repeats`` × (raw, collector) against ``server``: every run and the medians."""
+    total = workers * envs_per_worker
+    runs = []
+    for repeat in range(repeats):
+        raw = raw_rate(env_id, total, config, server, seconds)
+        coll = collector_rate(env_id, workers, envs_per_worker, config, server, batches)
+        row = {"repeat": repeat, "raw_env_steps_per_s": round(raw, 1),
+               "collector_env_steps_per_s": round(coll, 1), "ratio": round(coll / raw, 3)}
+        runs.append(row)
+        if report:
+            print(json.dumps(row), flush=True)
+    median = {
+        key: float(np.median([r[key] for r in runs]))
+        for key in ("raw_env_steps_per_s", "collector_env_steps_per_s", "ratio")
+    }
+    return {"env_id": env_id, "workers": workers, "envs_per_worker": envs_per_worker,
+            "runs": runs, "median": median}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -108,22 +133,10 @@ def main(argv: list[str] | None = None) -> int:
                     raise
                 time.sleep(0.05)
     try:
-        total = args.workers * args.envs_per_worker
-        results = []
-        for repeat in range(args.repeats):
-            raw = raw_rate(args.env_id, total, args.env_config, server, args.seconds)
-            coll = collector_rate(args.env_id, args.workers, args.envs_per_worker,
-                                  args.env_config, server, args.batches)
-            row = {"repeat": repeat, "raw_env_steps_per_s": round(raw, 1),
-                   "collector_env_steps_per_s": round(coll, 1), "ratio": round(coll / raw, 3)}
-            results.append(row)
-            print(json.dumps(row), flush=True)
-        med = {
-            key: float(np.median([r[key] for r in results]))
-            for key in ("raw_env_steps_per_s", "collector_env_steps_per_s", "ratio")
-        }
-        print(json.dumps({"env_id": args.env_id, "workers": args.workers,
-                          "envs_per_worker": args.envs_per_worker, "median": med}), flush=True)
+        result = measure(args.env_id, args.workers, args.envs_per_worker, args.env_config,
+                         server, args.seconds, args.batches, args.repeats)
+        del result["runs"]
+        print(json.dumps(result), flush=True)
     finally:
         if private is not None:
             private.terminate()
