@@ -87,7 +87,6 @@ fn heights_from_onsets(dataset: &Dataset, model: &mut Model) {
     all.sort_by(f64::total_cmp);
     let reference = all[all.len() / 2];
     model.surface_offset = reference - dataset.meta.nominal_surface_z;
-    model.onset_offset = Some(model.surface_offset);
     for site in &mut model.surface {
         let mut here: Vec<f64> = onsets
             .iter()

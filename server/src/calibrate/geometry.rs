@@ -44,13 +44,6 @@ pub const CURVATURE_EXTENT: f64 = 0.04;
 const CONTACT_MARGIN: f64 = 0.002;
 /// Prior standard deviations of a path's slope and curvature [1/m].
 pub const PATH_PRIOR: [f64; 2] = [0.3, 10.0];
-/// Prior standard deviation \[m\] of the global surface offset around the one the contact
-/// onsets measured. The offset stays fitted (the simulator's own force–depth curve near
-/// onset need not match the body's: 0.27 mm on the independent generator's no-effect
-/// case), but an effect the baseline lacks must not be absorbed by moving the whole skin
-/// by millimetres (2.4 mm on its depth-dependent damping case, 1.3 mm on its relaxation
-/// case). Set at 0.5 mm, twice that bias, before those cases were rerun.
-pub const OFFSET_PRIOR_M: f64 = 0.0005;
 /// RMS force \[N\] over a recording that one prior standard deviation is worth.
 pub const PRIOR_FORCE_N: f64 = 0.05;
 

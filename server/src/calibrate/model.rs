@@ -8,7 +8,7 @@ use crate::recordings::Dataset;
 use super::decision::Accepted;
 use super::effects;
 use super::fit::{Bound, Convergence, levenberg_marquardt_blocks};
-use super::geometry::{OFFSET_PRIOR_M, PATH_PRIOR, PRIOR_FORCE_N, Source};
+use super::geometry::{PATH_PRIOR, PRIOR_FORCE_N, Source};
 use super::replay::{Model, ReplayCache, Setup};
 
 /// Time constants a relaxation branch may take \[s\] (the signature's grid spans the same).
@@ -266,10 +266,6 @@ pub fn fit_model(
         })
         .collect();
     let with_prior = free.geometry != Geometry::Fixed;
-    let offset_free = packed
-        .names
-        .iter()
-        .any(|n| n == "baseline.surface_offset_m");
     // The tangential force enters only with an effect that shows in it.
     let lateral = effects
         .iter()
@@ -295,11 +291,6 @@ pub fn fit_model(
                     for k in (0..rec.len()).step_by(strides[b]) {
                         rows.extend([rec.f[k][0] - p.fxy[k][0], rec.f[k][1] - p.fxy[k][1]]);
                     }
-                }
-                if offset_free && let Some(onset) = candidate.onset_offset {
-                    // The onsets' measurement of the skin (see `geometry::OFFSET_PRIOR_M`).
-                    let weight = PRIOR_FORCE_N * (rows.len() as f64).sqrt();
-                    rows.push(weight * (candidate.surface_offset - onset) / OFFSET_PRIOR_M);
                 }
                 if with_prior && let Some(path) = candidate.paths.iter().find(|p| p.recording == i)
                 {

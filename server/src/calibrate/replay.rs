@@ -39,10 +39,6 @@ pub struct Model {
     pub damping: f64,
     /// True surface minus the dataset's nominal surface \[m\].
     pub surface_offset: f64,
-    /// The surface offset the contact onsets measured (the fit's prior for
-    /// `surface_offset`, see [`super::geometry::OFFSET_PRIOR_M`]); `None` without onsets.
-    #[serde(default)]
-    pub onset_offset: Option<f64>,
     /// Power-spring exponent (1: linear).
     pub exponent: f64,
     /// Maxwell branch, if any.
@@ -110,7 +106,6 @@ impl Model {
             stiffness,
             damping,
             surface_offset,
-            onset_offset: None,
             exponent: 1.0,
             relaxation: None,
             second_relaxation: None,
