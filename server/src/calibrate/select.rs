@@ -175,17 +175,8 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                     .filter(|name| Some(*name) != replaced)
                     .collect();
                 names.push(effect.name);
-                let (refitted, diagnostics) = fit_model(
-                    setup,
-                    dataset,
-                    &split.train,
-                    model,
-                    &names,
-                    Free::PER_SITE,
-                    EFFECT_ITERATIONS,
-                );
-                let (model, _) = baseline::surface_elsewhere(setup, dataset, split, refitted);
-                let predictions = replay_all(setup, &model, &dataset.recordings, &all);
+                let (model, diagnostics, predictions) =
+                    refit_in_simulator(setup, dataset, split, model, &names);
                 let channel = entry.channel();
                 let before =
                     rmse_against(dataset, &split.validation, &current_predictions, channel);
@@ -286,6 +277,31 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
     }
 }
 
+/// `model` with the effects `names` refitted by replay on the training recordings, the
+/// surface the training recordings could not determine fitted on the held-out ones, and
+/// its predictions of every recording.
+fn refit_in_simulator(
+    setup: &Setup,
+    dataset: &Dataset,
+    split: &Split,
+    model: Model,
+    names: &[&str],
+) -> (Model, FitDiagnostics, Vec<replay::Prediction>) {
+    let (refitted, diagnostics) = fit_model(
+        setup,
+        dataset,
+        &split.train,
+        model,
+        names,
+        Free::PER_SITE,
+        EFFECT_ITERATIONS,
+    );
+    let (model, _) = baseline::surface_elsewhere(setup, dataset, split, refitted);
+    let all: Vec<usize> = (0..dataset.recordings.len()).collect();
+    let predictions = replay_all(setup, &model, &dataset.recordings, &all);
+    (model, diagnostics, predictions)
+}
+
 /// An accepted effect's richer form ([`effects::Effect::richer`]), modelled and refitted:
 /// it replaces `trial`'s model when it leaves at most [`effects::RICHER_SSE_SHARE`] of the
 /// training sum of squares and does no worse on validation.
@@ -297,18 +313,8 @@ fn try_richer(trial: &mut Trial, setup: &Setup, dataset: &Dataset, split: &Split
         return;
     };
     let names: Vec<&str> = trial.names.iter().map(String::as_str).collect();
-    let (refitted, diagnostics) = fit_model(
-        setup,
-        dataset,
-        &split.train,
-        model,
-        &names,
-        Free::PER_SITE,
-        EFFECT_ITERATIONS,
-    );
-    let (model, _) = baseline::surface_elsewhere(setup, dataset, split, refitted);
-    let all: Vec<usize> = (0..dataset.recordings.len()).collect();
-    let predictions = replay_all(setup, &model, &dataset.recordings, &all);
+    let (model, diagnostics, predictions) =
+        refit_in_simulator(setup, dataset, split, model, &names);
     let channel = entry.channel();
     let train_before = rmse_against(dataset, &split.train, &trial.predictions, channel);
     let train_after = rmse_against(dataset, &split.train, &predictions, channel);
