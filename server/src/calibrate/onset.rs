@@ -10,6 +10,14 @@
 //! smooth onset; a stiffness scale changes the line's slope, not where it starts). A
 //! recording's surface is the median over its approaches.
 //!
+//! Only approaches **from free air** count: the force must have stayed at its free-air
+//! level for [`MIN_FREE_AIR_S`] before the approach, with the probe above the onset it
+//! gives. Soft tissue that recovers slower than the probe rises lets the force drop to
+//! zero on every up-swing of a fast chirp while the probe is still millimetres deep
+//! (Hunt–Crossley damping, relaxation); each down-swing then looks like an approach.
+//! Counted, those put an independent generator's chirps 2–3 mm too deep, and a baseline
+//! built on them moved the whole skin by 2 mm to compensate.
+//!
 //! Biases to know: a sensor delay `τ` places the onset `v·τ` too low (0.2 mm at 10 mm/s
 //! and 20 ms), breathing moves it with the phase (the median over approaches helps), and
 //! a recording that starts in contact has no onset (its surface is fitted instead).
@@ -25,6 +33,9 @@ const BAND_N: [f64; 2] = [0.15, 1.5];
 const APPROACH_SPEED: f64 = 0.0005;
 /// At least this many samples in the band for a line.
 const MIN_BAND_SAMPLES: usize = 4;
+/// An approach counts after at least this long at the free-air level \[s\] (a hover
+/// between presses lasts longer; a chirp's up-swing, shorter).
+pub const MIN_FREE_AIR_S: f64 = 0.2;
 
 /// The surface height [m, world z] under `rec`'s probe at its contact onsets, if it
 /// approached from free air at least once.
@@ -43,36 +54,46 @@ pub fn surface_z(rec: &Recording) -> Option<f64> {
     let low = BAND_N[0].max(5.0 * spread);
     let high = BAND_N[1].max(3.0 * low);
     let mut onsets = Vec::new();
+    // Where the current stretch at the free-air level began.
+    let mut free_from = 0;
     let mut i = 0;
     while i < n {
-        // Free air, then the force rises through the band while the probe descends.
-        if rec.f[i][2] - level < low || rec.v[i][2] > -APPROACH_SPEED {
+        if rec.f[i][2] - level < low {
             i += 1;
             continue;
         }
-        // The band: from the first sample above `low` while the probe descends, up to
-        // `high` — and at least MIN_BAND_SAMPLES samples (a fast approach at a low rate
-        // crosses the band in one or two samples), but never past 4 × `high`.
-        let start = i;
-        let mut end = i;
-        while end < n
-            && rec.v[end][2] < 0.0
-            && rec.f[end][2] - level < 4.0 * high
-            && (rec.f[end][2] - level < high || end - start < MIN_BAND_SAMPLES)
-        {
-            end += 1;
-        }
-        let band: Vec<usize> = (start..end).collect();
-        if band.len() >= MIN_BAND_SAMPLES
-            && let Some(z) = extrapolated_onset(rec, &band, level)
-        {
-            onsets.push(z);
+        // Free air, then the force rises through the band while the probe descends.
+        let from_free_air = rec.t[i] - rec.t[free_from] >= MIN_FREE_AIR_S;
+        if rec.v[i][2] <= -APPROACH_SPEED && from_free_air {
+            // The band: from the first sample above `low` while the probe descends, up
+            // to `high` — and at least MIN_BAND_SAMPLES samples (a fast approach at a
+            // low rate crosses the band in one or two samples), but never past 4 × `high`.
+            let start = i;
+            let mut end = i;
+            while end < n
+                && rec.v[end][2] < 0.0
+                && rec.f[end][2] - level < 4.0 * high
+                && (rec.f[end][2] - level < high || end - start < MIN_BAND_SAMPLES)
+            {
+                end += 1;
+            }
+            let band: Vec<usize> = (start..end).collect();
+            let highest = rec.p[free_from..start]
+                .iter()
+                .fold(f64::MIN, |m, p| m.max(p[2]));
+            if band.len() >= MIN_BAND_SAMPLES
+                && let Some(z) = extrapolated_onset(rec, &band, level)
+                && highest >= z
+            {
+                onsets.push(z);
+            }
+            i = end;
         }
         // Wait for the force to return to free air before the next approach.
-        i = end;
         while i < n && rec.f[i][2] - level > 0.5 * low {
             i += 1;
         }
+        free_from = i.min(n - 1);
     }
     (!onsets.is_empty()).then(|| median(onsets))
 }
@@ -139,6 +160,37 @@ mod tests {
             let z = surface_z(&presses(0.9, k)).expect("two approaches");
             assert!((z - 0.9).abs() < 1e-4, "k {k}: onset {z}");
         }
+    }
+
+    #[test]
+    fn a_chirp_whose_force_drops_on_each_up_swing_gives_one_onset() {
+        // One approach from free air onto skin at 0.9 (10 mm/s, 1 kHz) to 6 mm deep, then a
+        // 4 Hz ±2 mm oscillation of a body that recovers slowly: the force is zero on
+        // every up-swing although the probe stays 4 mm deep.
+        let mut rec = Recording::default();
+        let dt = 0.001;
+        for i in 0..8000 {
+            let t = i as f64 * dt;
+            let (z, vz) = if t < 2.6 {
+                (0.92 - 0.01 * t, -0.01)
+            } else {
+                let w = 2.0 * std::f64::consts::PI * 4.0;
+                let s = t - 2.6;
+                (0.894 - 0.002 * (w * s).sin(), -0.002 * w * (w * s).cos())
+            };
+            let depth = (0.9 - z).max(0.0);
+            let force = if t < 2.6 {
+                1000.0 * depth
+            } else {
+                (1000.0 * (depth - 0.006) + 60.0 * -vz).max(0.0)
+            };
+            rec.t.push(t);
+            rec.p.push([0.0, 0.0, z]);
+            rec.v.push([0.0, 0.0, vz]);
+            rec.f.push([0.0, 0.0, force]);
+        }
+        let z = surface_z(&rec).expect("one approach from free air");
+        assert!((z - 0.9).abs() < 1e-4, "onset {z}");
     }
 
     #[test]

@@ -20,6 +20,7 @@ mod factor;
 mod law;
 mod layout;
 mod params;
+mod relaxation;
 mod skin;
 mod solver;
 mod tissue_laws;
@@ -31,9 +32,9 @@ pub use contact::{ContactWrench, ProbeFace, ProbeKinematics};
 pub use law::{LawContext, LawTerms, LinearSpringDamper, ParticleLaw};
 pub use layout::ShellLayout;
 pub use params::{SiteStiffness, TorsoParamError, TorsoParams};
+pub use relaxation::StructuralRelaxation;
 pub use skin::Skin;
 pub use tissue_laws::{
-    DepthDamping, DepthDampingLaw, MaxwellBranch, POWER_REFERENCE_DEPTH, PowerSpring, Relaxation,
-    power_law,
+    DepthDamping, DepthDampingLaw, POWER_REFERENCE_DEPTH, PowerSpring, Relaxation, power_law,
 };
 pub use torso::Torso;

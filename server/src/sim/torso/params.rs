@@ -74,8 +74,8 @@ pub struct TorsoParams {
     /// Exponent of the particle springs (1: linear; > 1: stiffening tissue, see
     /// [`super::PowerSpring`]). Default 1.
     pub exponent: f64,
-    /// Viscoelastic relaxation: a Maxwell branch per particle ([`super::MaxwellBranch`]).
-    /// Default none.
+    /// Viscoelastic relaxation: a Maxwell branch on every elastic element
+    /// ([`super::StructuralRelaxation`]). Default none.
     pub relaxation: Option<super::Relaxation>,
     /// A second Maxwell branch with its own time constant (tissue often relaxes on two
     /// time scales, e.g. 0.5 s and 5 s). Default none.

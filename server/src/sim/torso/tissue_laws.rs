@@ -4,10 +4,6 @@
 //! - [`PowerSpring`] (`exponent ≠ 1`): stiffening tissue. Each particle's spring force
 //!   becomes `k·u₀·(|u|/u₀)ⁿ` (`u₀` = 10 mm reference depth, so `k` keeps its meaning there)
 //!   instead of `k·|u|`; the law adds the difference to the linear spring.
-//! - [`MaxwellBranch`] (`relaxation`): viscoelastic relaxation. A spring `k_m = ratio·k`
-//!   in series with a dashpot of time constant `τ` per particle: `f = −k_m·(u − x)`,
-//!   `ẋ = (u − x)/τ`. At constant depth the branch's force decays with `τ`; between pushes
-//!   `x` carries memory of the last one.
 //! - [`DepthDampingLaw`] (`depth_damping`): damping growing with indentation, as in
 //!   Hunt–Crossley contact: each particle pushed in by `d` gets extra damping
 //!   `ratio·c·(d/10 mm)^p` on top of its linear `c`.
@@ -19,11 +15,13 @@ use super::law::{LawContext, LawTerms, ParticleLaw};
 /// Reference depth of the power spring \[m\].
 pub const POWER_REFERENCE_DEPTH: f64 = 0.01;
 
-/// Parameters of the Maxwell branch (`Default`: no branch, ratio 0).
+/// Parameters of a Maxwell branch over the whole elastic structure (see
+/// [`super::StructuralRelaxation`]; `Default`: no branch, ratio 0).
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Relaxation {
-    /// Branch stiffness relative to the particle spring (`k_m / k`).
+    /// Branch stiffness relative to each elastic element's own (`k_m / k`): the share by
+    /// which the body is stiffer right after a fast push than once relaxed.
     pub ratio: f64,
     /// Relaxation time constant \[s\].
     pub tau_s: f64,
@@ -66,42 +64,6 @@ impl ParticleLaw for PowerSpring {
             out.force[i] -= k * (power - u);
             // d/du of the extra force, negated; the linear spring already adds k.
             out.stiffness[i] += k * (slope - 1.0);
-        }
-    }
-
-    fn box_clone(&self) -> Box<dyn ParticleLaw> {
-        Box::new(self.clone())
-    }
-}
-
-/// Maxwell branches, one per particle (see the module docs).
-#[derive(Debug, Clone)]
-pub struct MaxwellBranch {
-    /// Branch stiffness per particle [N/m].
-    pub stiffness: Vec<f64>,
-    /// Time constant \[s\].
-    pub tau: f64,
-    /// Dashpot positions \[m\].
-    pub x: Vec<f64>,
-}
-
-impl ParticleLaw for MaxwellBranch {
-    fn name(&self) -> &'static str {
-        "maxwell_branch"
-    }
-
-    fn add_terms(&self, ctx: &LawContext<'_>, out: &mut LawTerms) {
-        for i in 0..ctx.u.len() {
-            let k = self.stiffness[i];
-            out.force[i] -= k * (ctx.u[i] - self.x[i]);
-            out.stiffness[i] += k;
-        }
-    }
-
-    fn advance(&mut self, ctx: &LawContext<'_>) {
-        let decay = (-ctx.dt / self.tau).exp();
-        for (x, u) in self.x.iter_mut().zip(ctx.u) {
-            *x = u + (*x - u) * decay;
         }
     }
 

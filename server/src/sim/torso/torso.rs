@@ -5,9 +5,10 @@ use super::factor::SystemFactor;
 use super::law::{LawContext, LawTerms, LinearSpringDamper, ParticleLaw};
 use super::layout::ShellLayout;
 use super::params::{TorsoParamError, TorsoParams};
+use super::relaxation::StructuralRelaxation;
 use super::skin::Skin;
 use super::solver::{ContactRow, System, Workspace, conjugate_gradient};
-use super::tissue_laws::{DepthDampingLaw, MaxwellBranch, PowerSpring};
+use super::tissue_laws::{DepthDampingLaw, PowerSpring};
 use crate::sim::vec3::{add, cross, scale, sub};
 
 /// Relative residual at which the implicit solve stops.
@@ -43,6 +44,12 @@ pub struct Torso {
     edge_c: f64,
     volume_k: f64,
     laws: Vec<Box<dyn ParticleLaw>>,
+    /// Linear particle spring stiffness [N/m] (what relaxation scales).
+    spring: Vec<f64>,
+    /// Maxwell branches over the whole elastic structure, if any.
+    relaxation: Option<StructuralRelaxation>,
+    /// `1 + Σ ratio` of the branches: the elastic terms' scale in the implicit system.
+    elastic_scale: f64,
     u: Vec<f64>,
     v: Vec<f64>,
     t: f64,
@@ -101,13 +108,11 @@ impl Torso {
                 exponent: params.exponent,
             }));
         }
-        for r in params.relaxation.iter().chain(&params.second_relaxation) {
-            laws.push(Box::new(MaxwellBranch {
-                stiffness: spring.iter().map(|k| k * r.ratio).collect(),
-                tau: r.tau_s,
-                x: vec![0.0; spring.len()],
-            }));
-        }
+        let relaxation = StructuralRelaxation::new(
+            params.relaxation.iter().chain(&params.second_relaxation),
+            spring.len(),
+        );
+        let elastic_scale = 1.0 + relaxation.as_ref().map_or(0.0, |r| r.total_ratio());
         if let Some(d) = &params.depth_damping {
             laws.push(Box::new(DepthDampingLaw {
                 damping,
@@ -128,6 +133,9 @@ impl Torso {
             edge_k,
             edge_c,
             laws,
+            spring,
+            relaxation,
+            elastic_scale,
             previous_probe_velocity: None,
             u: vec![0.0; n],
             v: vec![0.0; n],
@@ -185,6 +193,9 @@ impl Torso {
     pub fn set_state(&mut self, u: &[f64], v: &[f64]) {
         self.u.copy_from_slice(u);
         self.v.copy_from_slice(v);
+        if let Some(relaxation) = &mut self.relaxation {
+            relaxation.relax_at(u);
+        }
         (self.pending_steps, self.pending_time) = (0, 0.0);
     }
 
@@ -403,6 +414,9 @@ impl Torso {
             self.u[i] += dt * self.scratch[i];
         }
         std::mem::swap(&mut self.v, &mut self.scratch);
+        if let Some(relaxation) = &mut self.relaxation {
+            relaxation.advance(&self.u, dt);
+        }
         let ctx = LawContext {
             t: self.t,
             dt,
@@ -451,6 +465,34 @@ impl Torso {
         }
         if self.volume_k > 0.0 {
             let dv = self.volume_change() - self.terms.volume_offset;
+            for (r, a) in self.rhs.iter_mut().zip(&self.layout.area) {
+                *r -= dt * self.volume_k * dv * a;
+            }
+        }
+        self.add_relaxation_terms(dt);
+    }
+
+    /// The relaxation branches' part of the system (see `relaxation`): their stiffness
+    /// `Σ ratio·K` on the diagonal (edges and volume are scaled in `solve`), their force
+    /// `−K·Σ ratio·(u − x)` on the right-hand side.
+    fn add_relaxation_terms(&mut self, dt: f64) {
+        let Some(relaxation) = &mut self.relaxation else {
+            return;
+        };
+        let extra = self.elastic_scale - 1.0;
+        let lag = relaxation.lag(&self.u);
+        for i in 0..lag.len() {
+            let k = self.spring[i] + self.layout.ground[i] * self.edge_k;
+            self.diag[i] += dt * dt * extra * k;
+            self.rhs[i] -= dt * k * lag[i];
+        }
+        for &(i, j, w) in &self.layout.edges {
+            let f = dt * self.edge_k * w * (lag[i] - lag[j]);
+            self.rhs[i] -= f;
+            self.rhs[j] += f;
+        }
+        if self.volume_k > 0.0 {
+            let dv: f64 = self.layout.area.iter().zip(lag).map(|(a, l)| a * l).sum();
             for (r, a) in self.rhs.iter_mut().zip(&self.layout.area) {
                 *r -= dt * self.volume_k * dv * a;
             }
@@ -508,8 +550,8 @@ impl Torso {
         let system = System {
             diag: &self.diag,
             edges: &self.layout.edges,
-            edge_coef: dt * self.edge_c + dt * dt * self.edge_k,
-            volume: area.map(|a| (a, dt * dt * self.volume_k)),
+            edge_coef: dt * self.edge_c + dt * dt * self.edge_k * self.elastic_scale,
+            volume: area.map(|a| (a, dt * dt * self.volume_k * self.elastic_scale)),
             contacts: &self.rows,
         };
         if self.rows.is_empty() && !self.factor_failed {
@@ -793,6 +835,48 @@ mod tests {
             wrench.force[2]
         );
         assert!(wrench.force[2] > 0.0 && wrench.samples_in_contact >= 20);
+    }
+
+    #[test]
+    fn the_probe_feels_the_branch_ratio_and_time_constant() {
+        // Correspondence principle: every elastic element relaxes alike, so a probe pushed
+        // fast and held feels F∞·(1 + ratio·e^(−t/τ)), as the catalogue's point law says.
+        let (ratio, tau) = (0.8, 1.0);
+        let params = TorsoParams {
+            relaxation: Some(Relaxation { ratio, tau_s: tau }),
+            ..TorsoParams::default()
+        };
+        let mut torso = Torso::new(params, ProbeFace::default()).unwrap();
+        let top = torso.params().top_z();
+        let dt = 0.002;
+        let push_steps = 10; // 20 ms to 6 mm
+        let mut forces = Vec::new();
+        for k in 0..push_steps + 4000 {
+            let depth = 0.006 * (k.min(push_steps) as f64 / push_steps as f64);
+            let v = if k < push_steps { -0.3 } else { 0.0 };
+            let f = torso.step(dt, Some(&level_probe(0.0, 0.0, top - depth, v)));
+            forces.push(f.force[2]);
+        }
+        // Held from t = 0 (end of the push); 8 s later the branch is gone (e^−8).
+        let at = |t: f64| forces[push_steps + (t / dt) as usize];
+        let relaxed = *forces.last().unwrap();
+        let excess = |t: f64| at(t) / relaxed - 1.0;
+        // The branch relaxed ≈ 1 % during the push; allow the transient of the hold.
+        assert!(
+            (excess(0.1) / (ratio * (-0.1f64 / tau).exp()) - 1.0).abs() < 0.08,
+            "excess at 0.1 s {} for ratio {ratio}",
+            excess(0.1)
+        );
+        let decay = excess(1.1) / excess(0.1);
+        assert!(
+            (decay - (-1.0f64 / tau).exp()).abs() < 0.03,
+            "decay over 1 s {decay} for τ {tau} s"
+        );
+        let static_force = torso.static_probe_stiffness([0.0, 0.0], 0.006) * 0.006;
+        assert!(
+            (relaxed / static_force - 1.0).abs() < 0.03,
+            "relaxed {relaxed} N vs static {static_force} N"
+        );
     }
 
     #[test]
