@@ -1,8 +1,9 @@
 //! `depth_dependent_damping`: damping that grows with indentation, as in Hunt–Crossley
 //! contact (the deeper the probe, the more tissue is sheared). Signature:
 //! `r·c·(δ/10 mm)^p·(−v_z)` in contact, `c` the baseline's damping, `p` on a grid; `r`
-//! (`ratio_at_10mm`) is the extra damping at 10 mm over the linear damping. Element: the
-//! depth-dependent damping law on every particle (`torso.depth_damping`).
+//! (`ratio_at_10mm`) is the extra damping at 10 mm over the linear damping. Element:
+//! every damping element of the torso growing with its depth (`torso.depth_damping`), so
+//! the ratio means at the probe what it means here.
 
 use super::linear::*;
 use super::{Base, Effect, Parameter, Params, Readjust, ReportContext, Signature, number};
@@ -91,7 +92,7 @@ impl Effect for DepthDependentDamping {
             .as_ref()
             .map_or((0.0, 1.0), |d| (d.ratio_at_10mm, d.exponent));
         format!(
-            "damping grows with depth (extra {r:.1}× the linear damping at 10 mm, ∝ depth^{p:.2}); added depth-dependent damping to the particle joints"
+            "damping grows with depth (extra {r:.1}× the linear damping at 10 mm, ∝ depth^{p:.2}); made the torso's damping grow with depth"
         )
     }
 }

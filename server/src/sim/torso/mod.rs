@@ -34,7 +34,5 @@ pub use layout::ShellLayout;
 pub use params::{SiteStiffness, TorsoParamError, TorsoParams};
 pub use relaxation::StructuralRelaxation;
 pub use skin::Skin;
-pub use tissue_laws::{
-    DepthDamping, DepthDampingLaw, POWER_REFERENCE_DEPTH, PowerSpring, Relaxation, power_law,
-};
+pub use tissue_laws::{DepthDamping, POWER_REFERENCE_DEPTH, PowerSpring, Relaxation, power_law};
 pub use torso::Torso;

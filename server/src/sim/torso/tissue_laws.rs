@@ -4,9 +4,6 @@
 //! - [`PowerSpring`] (`exponent ≠ 1`): stiffening tissue. Each particle's spring force
 //!   becomes `k·u₀·(|u|/u₀)ⁿ` (`u₀` = 10 mm reference depth, so `k` keeps its meaning there)
 //!   instead of `k·|u|`; the law adds the difference to the linear spring.
-//! - [`DepthDampingLaw`] (`depth_damping`): damping growing with indentation, as in
-//!   Hunt–Crossley contact: each particle pushed in by `d` gets extra damping
-//!   `ratio·c·(d/10 mm)^p` on top of its linear `c`.
 
 use serde::{Deserialize, Serialize};
 
@@ -72,7 +69,9 @@ impl ParticleLaw for PowerSpring {
     }
 }
 
-/// Parameters of depth-dependent damping (see [`DepthDampingLaw`]).
+/// Parameters of depth-dependent damping: every damping element of the torso grows by
+/// `ratio·(d/10 mm)^p` with its depth `d` (see `Torso`'s step), so the probe's damping
+/// does.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DepthDamping {
@@ -85,43 +84,4 @@ pub struct DepthDamping {
 
 fn one() -> f64 {
     1.0
-}
-
-/// Depth-dependent damping, one term per particle (see the module docs). The depth
-/// is the particle's inward displacement at the start of the step (explicit in the
-/// depth, implicit in the velocity).
-#[derive(Debug, Clone)]
-pub struct DepthDampingLaw {
-    /// Linear damping per particle [N·s/m].
-    pub damping: Vec<f64>,
-    /// The law's parameters.
-    pub params: DepthDamping,
-}
-
-impl ParticleLaw for DepthDampingLaw {
-    fn name(&self) -> &'static str {
-        "depth_damping"
-    }
-
-    fn add_terms(&self, ctx: &LawContext<'_>, out: &mut LawTerms) {
-        let DepthDamping {
-            ratio_at_10mm,
-            exponent,
-        } = self.params;
-        for i in 0..ctx.u.len() {
-            // Pushed in: the displacement along the outward normal is negative.
-            let depth = (-ctx.u[i]).max(0.0);
-            if depth == 0.0 {
-                continue;
-            }
-            let c =
-                ratio_at_10mm * self.damping[i] * (depth / POWER_REFERENCE_DEPTH).powf(exponent);
-            out.force[i] -= c * ctx.v[i];
-            out.damping[i] += c;
-        }
-    }
-
-    fn box_clone(&self) -> Box<dyn ParticleLaw> {
-        Box::new(self.clone())
-    }
 }
