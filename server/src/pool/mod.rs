@@ -3,5 +3,7 @@
 mod batch;
 mod workers;
 
+pub(crate) use batch::panic_message;
 pub use batch::{BatchBuildError, EnvBatch, ExchangeError, Exchanged};
+pub(crate) use workers::renice_this_thread;
 pub use workers::{PoolStartError, WorkerPool};

@@ -24,9 +24,30 @@ pub struct PoolStartError {
     source: rayon::ThreadPoolBuildError,
 }
 
+/// Set the calling thread's nice value (background work yields the cores to the
+/// dispatcher and to client processes when all are busy). Raising one's nice value
+/// needs no privilege; a failure is logged and ignored.
+pub(crate) fn renice_this_thread(nice: i32) {
+    if nice == 0 {
+        return;
+    }
+    // SAFETY: setpriority on this thread's own id changes only its scheduling weight.
+    let result = unsafe {
+        libc::setpriority(
+            libc::PRIO_PROCESS,
+            libc::gettid() as libc::id_t,
+            nice as libc::c_int,
+        )
+    };
+    if result != 0 {
+        tracing::debug!(nice, "could not change a thread's nice value");
+    }
+}
+
 impl WorkerPool {
-    /// Start `threads` workers (0 = one per core).
-    pub fn new(threads: usize) -> Result<Self, PoolStartError> {
+    /// Start `threads` workers (0 = one per core) at nice value `nice` (see
+    /// `ServeConfig::worker_nice`).
+    pub fn new(threads: usize, nice: i32) -> Result<Self, PoolStartError> {
         let threads = if threads == 0 {
             std::thread::available_parallelism().map_or(1, |n| n.get())
         } else {
@@ -35,6 +56,15 @@ impl WorkerPool {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .thread_name(|i| format!("echogym-worker-{i}"))
+            .start_handler(move |_| renice_this_thread(nice))
+            // Spawned exchanges catch their panics; this is the net under that net (a
+            // panic reaching rayon would otherwise abort the server).
+            .panic_handler(|payload| {
+                tracing::error!(
+                    message = %super::batch::panic_message(payload.as_ref()),
+                    "a worker task panicked"
+                );
+            })
             .build()
             .map_err(|source| PoolStartError { threads, source })?;
         Ok(Self { pool, threads })
@@ -48,6 +78,12 @@ impl WorkerPool {
     /// Run `op` inside the pool (so nested parallel iterators use its threads).
     pub fn install<R: Send>(&self, op: impl FnOnce() -> R + Send) -> R {
         self.pool.install(op)
+    }
+
+    /// Run `task` on a worker, without waiting for it (an exchange handed off by the
+    /// dispatcher). Tasks queue behind the pool's current work.
+    pub fn spawn(&self, task: impl FnOnce() + Send + 'static) {
+        self.pool.spawn(task);
     }
 
     /// Run `work` on every `(item, job)` pair, in parallel when `cost_per_item_ns` makes

@@ -223,6 +223,7 @@ impl Dispatcher {
             }
             let lease_id = (u64::from(self.instance) << 32) | u64::from(self.next_lease);
             self.next_lease += 1;
+            let spec = batch.spec().clone();
             let lease = match Lease::open(
                 &self.node,
                 &self.names,
@@ -242,8 +243,8 @@ impl Dispatcher {
             };
             let reply = AttachReply {
                 lease_id,
-                spec: lease.batch.spec().clone(),
-                layout: lease.batch.layout().clone(),
+                spec,
+                layout: lease.layout().clone(),
                 autoreset_mode: pending.mode,
                 server_spin_us: self.options.spin.as_micros() as u64,
                 server_node_id: self.node.id().value().to_string(),
@@ -281,7 +282,7 @@ impl Dispatcher {
         let leases = self.leases.iter().filter(|l| l.client_node == client);
         let pending = self.pending.iter().filter(|p| p.client_node == client);
         let count = leases.clone().count() + pending.clone().count();
-        let envs = leases.clone().map(|l| l.batch.len()).sum::<usize>()
+        let envs = leases.clone().map(|l| l.num_envs()).sum::<usize>()
             + pending.clone().map(|p| p.num_envs).sum::<usize>();
         let bytes =
             leases.map(lease_shm_bytes).sum::<u64>() + pending.map(|p| p.shm_bytes).sum::<u64>();
@@ -290,20 +291,29 @@ impl Dispatcher {
 
     /// Bytes of lease shared memory held and being built.
     fn shm_bytes_in_use(&self) -> u64 {
-        self.leases.iter().map(lease_shm_bytes).sum::<u64>()
+        self.leases
+            .iter()
+            .chain(&self.closing)
+            .map(lease_shm_bytes)
+            .sum::<u64>()
             + self.pending.iter().map(|p| p.shm_bytes).sum::<u64>()
     }
 
     /// Envs held by leases and being built.
     pub(super) fn envs_in_use(&self) -> usize {
-        let held: usize = self.leases.iter().map(|l| l.batch.len()).sum();
+        let held: usize = self
+            .leases
+            .iter()
+            .chain(&self.closing)
+            .map(|l| l.num_envs())
+            .sum();
         let building: usize = self.pending.iter().map(|p| p.num_envs).sum();
         held + building
     }
 }
 
 fn lease_shm_bytes(lease: &Lease) -> u64 {
-    lease.batch.layout().shared_memory_bytes() as u64
+    lease.layout().shared_memory_bytes() as u64
 }
 
 /// Bytes as MiB for messages.

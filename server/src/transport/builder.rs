@@ -44,8 +44,8 @@ pub(super) struct Built {
 }
 
 enum Work {
-    Build(BuildJob),
-    Discard(EnvBatch),
+    Build(Box<BuildJob>),
+    Discard(Box<EnvBatch>),
 }
 
 /// The builder thread and its two queues.
@@ -63,7 +63,7 @@ impl Builder {
         let thread = std::thread::Builder::new()
             .name("echogym-builder".into())
             .spawn(move || {
-                lower_priority();
+                crate::pool::renice_this_thread(BUILDER_NICE);
                 for work in jobs {
                     match work {
                         Work::Build(job) => {
@@ -97,12 +97,12 @@ impl Builder {
     /// builder thread is gone (it catches every panic, so only a bug gets here).
     #[must_use]
     pub fn build(&self, job: BuildJob) -> bool {
-        self.send(Work::Build(job))
+        self.send(Work::Build(Box::new(job)))
     }
 
     /// Drop `batch` on the builder thread (here, if the thread is gone).
     pub fn discard(&self, batch: EnvBatch) {
-        let _ = self.send(Work::Discard(batch));
+        let _ = self.send(Work::Discard(Box::new(batch)));
     }
 
     fn send(&self, work: Work) -> bool {
@@ -136,22 +136,7 @@ impl Drop for Builder {
 
 /// Building is background work: at nice +10 the scheduler gives the dispatcher and the
 /// workers stepping other clients' envs the cores first when they are all busy.
-fn lower_priority() {
-    // SAFETY: setpriority on this thread's own id changes only its scheduling weight.
-    let result = unsafe {
-        libc::setpriority(
-            libc::PRIO_PROCESS,
-            libc::gettid() as libc::id_t,
-            BUILDER_NICE,
-        )
-    };
-    if result != 0 {
-        tracing::debug!("could not lower the builder thread's priority");
-    }
-}
-
-/// The builder thread's nice value.
-const BUILDER_NICE: libc::c_int = 10;
+const BUILDER_NICE: i32 = 10;
 
 fn build(registry: &EnvRegistry, job: &BuildJob) -> Result<EnvBatch, BatchBuildError> {
     let factory = registry
