@@ -19,6 +19,7 @@ use echogym_protocol::{
     ResetFlag, StepStatus,
 };
 
+use super::panic::panic_message;
 use super::workers::WorkerPool;
 use crate::envs::{Env, EnvBuildError, EnvFactory, EnvOutput, PHYSICS_ERROR_KEY, Transition};
 
@@ -141,15 +142,6 @@ pub enum BatchBuildError {
         /// Envs asked for.
         wanted: usize,
     },
-}
-
-/// The message of a caught panic.
-pub(crate) fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
-    payload
-        .downcast_ref::<&str>()
-        .map(|s| (*s).to_owned())
-        .or_else(|| payload.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "(no message)".to_owned())
 }
 
 impl EnvBatch {

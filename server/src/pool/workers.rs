@@ -61,7 +61,7 @@ impl WorkerPool {
             // panic reaching rayon would otherwise abort the server).
             .panic_handler(|payload| {
                 tracing::error!(
-                    message = %super::batch::panic_message(payload.as_ref()),
+                    message = %super::panic::panic_message(payload.as_ref()),
                     "a worker task panicked"
                 );
             })

@@ -12,7 +12,7 @@ use echogym_protocol::{
     AttachReply, AttachRequest, BatchLayout, ControlError, ControlErrorKind, ControlReply,
 };
 
-use super::builder::BuildJob;
+use super::builder::{AttachBuildError, BuildJob};
 use super::dispatcher::Dispatcher;
 use super::lease::Lease;
 use super::pending::PendingAttach;
@@ -152,12 +152,17 @@ impl Dispatcher {
             spec,
             shm_bytes,
         } = plan;
+        let lease_id = (u64::from(self.instance) << 32) | u64::from(self.next_lease);
+        self.next_lease += 1;
         let queued = self.builder.build(BuildJob {
             ticket,
             spec,
             num_envs: attach.num_envs,
             mode: attach.autoreset_mode,
             cancel: cancel.clone(),
+            lease_id,
+            client_node,
+            client_label: attach.client_label.clone(),
         });
         if !queued {
             respond(
@@ -190,9 +195,9 @@ impl Dispatcher {
                 continue;
             };
             let pending = self.pending.swap_remove(index);
-            let batch = match built.result {
-                Ok(batch) => batch,
-                Err(BatchBuildError::Cancelled { built, wanted }) => {
+            let lease = match built.result {
+                Ok(lease) => lease,
+                Err(AttachBuildError::Build(BatchBuildError::Cancelled { built, wanted })) => {
                     tracing::info!(
                         client = %pending.client_label,
                         env = %pending.env_id,
@@ -204,8 +209,9 @@ impl Dispatcher {
                 }
                 Err(e) => {
                     let kind = match e {
-                        BatchBuildError::Panicked { .. } => ControlErrorKind::Internal,
-                        _ => ControlErrorKind::InvalidConfig,
+                        AttachBuildError::Build(BatchBuildError::Panicked { .. })
+                        | AttachBuildError::Open(_) => ControlErrorKind::Internal,
+                        AttachBuildError::Build(_) => ControlErrorKind::InvalidConfig,
                     };
                     tracing::warn!(client = %pending.client_label, error = %e, "attach failed");
                     respond(&pending.request, &error(kind, e.to_string()));
@@ -218,28 +224,12 @@ impl Dispatcher {
                     env = %pending.env_id,
                     "attach dropped: the client stopped waiting before its envs were built"
                 );
-                self.builder.discard(batch);
+                self.retire(lease);
                 continue;
             }
-            let lease_id = (u64::from(self.instance) << 32) | u64::from(self.next_lease);
-            self.next_lease += 1;
-            let spec = batch.spec().clone();
-            let lease = match Lease::open(
-                &self.node,
-                &self.names,
-                lease_id,
-                batch,
-                pending.client_node,
-                pending.client_label.clone(),
-            ) {
-                Ok(lease) => lease,
-                Err(e) => {
-                    respond(
-                        &pending.request,
-                        &error(ControlErrorKind::Internal, e.to_string()),
-                    );
-                    continue;
-                }
+            let lease_id = lease.id;
+            let Some(spec) = lease.batch().map(|b| b.spec().clone()) else {
+                continue; // a new lease holds its batch
             };
             let reply = AttachReply {
                 lease_id,

@@ -92,7 +92,6 @@ pub struct DispatcherOptions {
 /// The running server: every port, lease and counter.
 pub struct Dispatcher {
     pub(super) options: DispatcherOptions,
-    pub(super) names: ServiceNames,
     pub(super) iox_config: Config,
     pub(super) registry: Arc<EnvRegistry>,
     pub(super) builder: Builder,
@@ -262,7 +261,23 @@ impl Dispatcher {
         let pool = Arc::new(WorkerPool::new(options.threads, options.worker_nice)?);
         let (completed_tx, completed) = channel();
         let registry = Arc::new(registry);
-        let builder = Builder::start(registry.clone()).map_err(StartError::Builder)?;
+        // The builder opens new leases' services through a node of its own (a node is
+        // not shared between threads).
+        let builder_node = NodeBuilder::new()
+            .config(&iox_config)
+            .name(
+                &NodeName::new(&format!(
+                    "echogym-build-{}-{}",
+                    options.name,
+                    std::process::id()
+                ))
+                .map_err(|e| StartError::Node(format!("{e:?}")))?,
+            )
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<Ipc>()
+            .map_err(|e| StartError::Node(format!("{e:?}")))?;
+        let builder =
+            Builder::start(registry.clone(), builder_node, names).map_err(StartError::Builder)?;
         let instance = (std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.subsec_nanos())
@@ -277,7 +292,6 @@ impl Dispatcher {
             "echogym server listening"
         );
         Ok(Self {
-            names,
             iox_config,
             registry,
             builder,

@@ -48,7 +48,8 @@ pub(crate) struct Lease {
 }
 
 impl Lease {
-    /// Create the lease's services and ports.
+    /// Create the lease's services and ports (on failure, the batch comes back with
+    /// the error).
     pub fn open(
         node: &Node<Ipc>,
         names: &ServiceNames,
@@ -56,27 +57,40 @@ impl Lease {
         batch: EnvBatch,
         client_node: u128,
         client_label: String,
-    ) -> Result<Self, ServiceError> {
-        let action_name = names.lease_action(id);
-        let obs_name = names.lease_obs(id);
-        let ready_name = names.lease_ready(id);
-        let action_service = lease_channel::<_, ActionHeader>(node, &action_name, Access::Create)?;
-        let obs_service = lease_channel::<_, ObsHeader>(node, &obs_name, Access::Create)?;
-        let ready_service = event_service(node, &ready_name, 1, Access::Create)?;
-        let subscriber = action_service
-            .subscriber_builder()
-            .create()
-            .map_err(|e| ServiceError::new(&action_name, e))?;
-        let publisher = obs_service
-            .publisher_builder()
-            .initial_max_slice_len(batch.layout().obs.total)
-            .allocation_strategy(AllocationStrategy::Static)
-            .create()
-            .map_err(|e| ServiceError::new(&obs_name, e))?;
-        let notifier = ready_service
-            .notifier_builder()
-            .create()
-            .map_err(|e| ServiceError::new(&ready_name, e))?;
+    ) -> Result<Self, Box<(ServiceError, EnvBatch)>> {
+        let obs_bytes = batch.layout().obs.total;
+        let opened = || -> Result<_, ServiceError> {
+            let action_name = names.lease_action(id);
+            let obs_name = names.lease_obs(id);
+            let ready_name = names.lease_ready(id);
+            let action_service =
+                lease_channel::<_, ActionHeader>(node, &action_name, Access::Create)?;
+            let obs_service = lease_channel::<_, ObsHeader>(node, &obs_name, Access::Create)?;
+            let ready_service = event_service(node, &ready_name, 1, Access::Create)?;
+            let subscriber = action_service
+                .subscriber_builder()
+                .create()
+                .map_err(|e| ServiceError::new(&action_name, e))?;
+            let publisher = obs_service
+                .publisher_builder()
+                .initial_max_slice_len(obs_bytes)
+                .allocation_strategy(AllocationStrategy::Static)
+                .create()
+                .map_err(|e| ServiceError::new(&obs_name, e))?;
+            let notifier = ready_service
+                .notifier_builder()
+                .create()
+                .map_err(|e| ServiceError::new(&ready_name, e))?;
+            Ok((
+                (subscriber, publisher, notifier),
+                (action_service, obs_service, ready_service),
+            ))
+        };
+        let ((subscriber, publisher, notifier), (action_service, obs_service, ready_service)) =
+            match opened() {
+                Ok(opened) => opened,
+                Err(e) => return Err(Box::new((e, batch))),
+            };
         Ok(Self {
             id,
             client_node,
