@@ -11,7 +11,7 @@
 //! and the env needs a reset (with same-step autoreset one is tried at once).
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use echogym_protocol::{
@@ -251,37 +251,39 @@ impl EnvBatch {
         let (mode, max_steps) = (self.mode, self.spec.max_episode_steps);
         let cost = self.step_cost_ns;
         let (physics_error_info, env_error_info) = (self.physics_error_info, self.env_error_info);
-        let busy_ns = AtomicU64::new(0);
         let work = |slot: &mut Slot, job: &mut Job<'_>| {
-            let job_started = Instant::now();
             let outcome = catch_unwind(AssertUnwindSafe(|| {
                 run_job(slot, job, fields, op, mode, max_steps, physics_error_info);
             }));
             if outcome.is_err() {
                 contain_failure(slot, job, fields, op, mode, env_error_info);
             }
-            busy_ns.fetch_add(job_started.elapsed().as_nanos() as u64, Ordering::Relaxed);
         };
-        match pool {
+        let threads = match pool {
             Some(pool) => pool.for_each(&mut self.slots, &mut jobs, cost, work),
-            None => self
-                .slots
-                .iter_mut()
-                .zip(jobs.iter_mut())
-                .for_each(|(slot, job)| work(slot, job)),
-        }
+            None => {
+                self.slots
+                    .iter_mut()
+                    .zip(jobs.iter_mut())
+                    .for_each(|(slot, job)| work(slot, job));
+                1
+            }
+        };
+        let elapsed = started.elapsed();
         let physics_errors = jobs.iter().filter(|j| j.physics_error).count() as u64;
         let env_errors = jobs.iter().filter(|j| j.env_error).count() as u64;
         drop(jobs);
+        // On one thread it would take about this long (an upper bound when the threads
+        // were unevenly loaded: the safe side for the dispatcher's inline choice).
         let serial = &mut self.serial_cost_ns[op_index(op)];
-        let busy = busy_ns.into_inner() as f64;
+        let busy = elapsed.as_nanos() as f64 * threads as f64;
         *serial = if *serial == 0.0 {
             busy.max(1.0)
         } else {
             0.8 * *serial + 0.2 * busy
         };
         if steps > 0 {
-            let per_env = started.elapsed().as_nanos() as f64 / self.slots.len() as f64;
+            let per_env = elapsed.as_nanos() as f64 / self.slots.len() as f64;
             self.step_cost_ns = if self.step_cost_ns == 0.0 {
                 per_env
             } else {

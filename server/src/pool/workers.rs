@@ -87,21 +87,21 @@ impl WorkerPool {
     }
 
     /// Run `work` on every `(item, job)` pair, in parallel when `cost_per_item_ns` makes
-    /// it worthwhile.
+    /// it worthwhile. Returns how many threads it used at most (1: this one).
     pub fn for_each<A: Send, B: Send>(
         &self,
         items: &mut [A],
         jobs: &mut [B],
         cost_per_item_ns: f64,
         work: impl Fn(&mut A, &mut B) + Sync + Send,
-    ) {
+    ) -> usize {
         let n = items.len();
         if self.threads <= 1 || n <= 1 || cost_per_item_ns * n as f64 <= PARALLEL_THRESHOLD_NS {
             items
                 .iter_mut()
                 .zip(jobs.iter_mut())
                 .for_each(|(a, b)| work(a, b));
-            return;
+            return 1;
         }
         // Chunks of at least ~threshold/2 of work each, and at most one per thread.
         let per_chunk = ((PARALLEL_THRESHOLD_NS / 2.0) / cost_per_item_ns.max(1.0)).ceil() as usize;
@@ -113,5 +113,6 @@ impl WorkerPool {
                 .with_min_len(min_len)
                 .for_each(|(a, b)| work(a, b));
         });
+        n.div_ceil(min_len).min(self.threads)
     }
 }
