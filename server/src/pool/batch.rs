@@ -103,7 +103,7 @@ pub struct EnvBatch {
     slots: Vec<Slot>,
     clipped: Vec<f32>,
     step_cost_ns: f64,
-    /// Measured cost of a whole exchange run on one thread [ns], per op (steps, resets);
+    /// Measured cost of a whole exchange run on one thread, in ns, per op (steps, resets);
     /// 0 until measured. The dispatcher runs cheap exchanges itself.
     serial_cost_ns: [f64; 2],
     /// Index of [`PHYSICS_ERROR_KEY`] in the spec's info keys, if declared.
@@ -215,7 +215,7 @@ impl EnvBatch {
         self.slots.len()
     }
 
-    /// What an exchange of `op` costs on one thread [ns] (an average of the last
+    /// What an exchange of `op` costs on one thread, in ns (an average of the last
     /// ones), `None` before the first.
     pub fn serial_cost_ns(&self, op: Op) -> Option<f64> {
         let cost = self.serial_cost_ns[op_index(op)];

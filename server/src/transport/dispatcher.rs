@@ -1,4 +1,4 @@
-//! The dispatcher: the server's one thread that owns every port.
+//! The dispatcher: the server thread that polls every port and answers control requests.
 //!
 //! # Wake-up protocol (spin, then block)
 //! iceoryx2 events coalesce: after a listener drains, the first `notify` sends one
