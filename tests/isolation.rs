@@ -95,6 +95,75 @@ fn a_big_attach_does_not_stall_a_bystander() {
 }
 
 #[test]
+fn a_slow_exchange_does_not_stall_a_bystander() {
+    // One `Faulty-v0` env that sleeps 400 ms in every step: its exchange runs on the
+    // worker pool while the dispatcher serves the bystander. (Before exchanges left the
+    // dispatcher, every bystander step waited for the slow one.)
+    let server = TestServer::start_in(
+        "isolation-slow",
+        common::fresh_location(),
+        &["--fault-injection"],
+    );
+    let slow_options = server.options();
+    let stepping = Arc::new(AtomicBool::new(false));
+    let slow = {
+        let stepping = stepping.clone();
+        std::thread::spawn(move || {
+            let connection = Connection::connect(&slow_options).expect("connect");
+            let mut lease = connection
+                .attach(&AttachOptions {
+                    env_id: "echogym/Faulty-v0".into(),
+                    num_envs: 1,
+                    config: serde_json::json!({"stall_ms": 400})
+                        .as_object()
+                        .cloned()
+                        .unwrap_or_default(),
+                    autoreset_mode: AutoresetMode::SameStep,
+                })
+                .expect("attach");
+            lease.reset(None, None).expect("reset");
+            stepping.store(true, Ordering::SeqCst);
+            let started = Instant::now();
+            for _ in 0..3 {
+                lease.step(&[0.0], None).expect("slow step");
+            }
+            stepping.store(false, Ordering::SeqCst);
+            started.elapsed()
+        })
+    };
+    let connection = server.connect();
+    let mut bystander = attach_null(
+        &connection,
+        1,
+        serde_json::json!({}),
+        AutoresetMode::SameStep,
+    );
+    bystander.reset(None, None).expect("reset");
+    while !stepping.load(Ordering::SeqCst) {
+        bystander.step(&[0.0; 7], None).expect("step");
+    }
+    let (mut slowest, mut steps) = (Duration::ZERO, 0usize);
+    while stepping.load(Ordering::SeqCst) {
+        let started = Instant::now();
+        bystander.step(&[0.0; 7], None).expect("step");
+        slowest = slowest.max(started.elapsed());
+        steps += 1;
+    }
+    let slow_time = slow.join().expect("slow client");
+    eprintln!(
+        "3 slow steps: {:.0} ms; bystander: {steps} steps meanwhile, slowest {:.2} ms",
+        slow_time.as_secs_f64() * 1e3,
+        slowest.as_secs_f64() * 1e3
+    );
+    assert!(steps >= 10, "the bystander stepped only {steps} times");
+    // Generous: scheduling on a loaded machine, not the 400 ms exchange.
+    assert!(
+        slowest < Duration::from_millis(200),
+        "a bystander step took {slowest:?} beside 400 ms exchanges"
+    );
+}
+
+#[test]
 fn an_attach_nobody_waits_for_is_cancelled() {
     let server = TestServer::start("isolation-cancel");
     let impatient = Connection::connect(&ConnectOptions {

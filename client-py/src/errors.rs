@@ -75,7 +75,7 @@ create_exception!(
     _native,
     EnvFailureError,
     EchogymError,
-    "An env failed internally and needs a reset."
+    "An exchange failed inside the server and returned nothing. (One env failing in its step or reset is not an error: that env is flagged in info[\"env_error\"], truncated, and needs a reset.)"
 );
 create_exception!(
     _native,

@@ -23,7 +23,7 @@ def test_observation_echoes_action_and_counts_steps(server):
     env = gym.make("echogym/Null-v0", obs_size=16, action_size=3)
     obs, info = env.reset(seed=1)
     assert obs.shape == (16,) and obs.dtype == np.float32
-    assert info == {"episode_step": 0.0}
+    assert info == {"episode_step": 0.0, "env_error": 0.0}
     for step in range(1, 6):
         action = np.array([0.1 * step, -0.2, 0.3], dtype=np.float32)
         obs, reward, terminated, truncated, info = env.step(action)

@@ -82,8 +82,10 @@ pub enum LeaseError {
         /// The env.
         env: usize,
     },
-    /// The env failed internally; it must be reset. Other envs of the batch did step.
-    #[error("env {env} failed internally and needs a reset")]
+    /// The exchange failed outside any one env, so nothing came back (`env` names
+    /// one if it was concerned). One env failing in its step or reset is not this:
+    /// the exchange returns with that env flagged (see [`crate::Lease::failed_envs`]).
+    #[error("the exchange failed inside the server and returned nothing (env {env})")]
     EnvFailure {
         /// The env.
         env: usize,

@@ -4,7 +4,8 @@ use std::time::Duration;
 
 use echogym_protocol::{
     ActionHeader, AttachReply, AttachRequest, AutoresetMode, BatchLayout, ControlErrorKind,
-    ControlReply, ControlRequest, EnvSpec, ObsHeader, Op, PROTOCOL_VERSION, ResetFlag, StepStatus,
+    ControlReply, ControlRequest, ENV_ERROR_KEY, EnvSpec, ObsHeader, Op, PROTOCOL_VERSION,
+    ResetFlag, StepStatus,
 };
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::publisher::Publisher;
@@ -150,6 +151,32 @@ impl Lease {
     /// The autoreset mode.
     pub fn autoreset_mode(&self) -> AutoresetMode {
         self.reply.autoreset_mode
+    }
+
+    /// The envs flagged [`ENV_ERROR_KEY`] in the observation `payload` of this lease:
+    /// their step or reset failed inside the server (the other envs' results are
+    /// valid). A failed env's row is zeros, a failed step is truncated, and the env
+    /// needs a reset (same-step autoreset tries one; if it failed too, a step of the
+    /// env answers [`LeaseError::NeedsReset`]).
+    pub fn failed_envs(&self, payload: &[u8]) -> Vec<usize> {
+        let layout = &self.reply.layout;
+        let Some(key) = self
+            .reply
+            .spec
+            .info_keys
+            .iter()
+            .position(|k| k == ENV_ERROR_KEY)
+        else {
+            return Vec::new();
+        };
+        (0..layout.num_envs)
+            .filter(|env| {
+                let at = layout.obs.info + (env * layout.info_len + key) * 4;
+                payload
+                    .get(at..at + 4)
+                    .is_some_and(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]]) != 0.0)
+            })
+            .collect()
     }
 
     /// True once [`Lease::close`] ran, or the server stopped or dropped the lease.

@@ -107,6 +107,9 @@ pub struct LeaseStatus {
     /// Env steps truncated for a physics error (non-finite state).
     #[serde(default)]
     pub physics_errors: u64,
+    /// Env steps and resets that failed inside the env (flagged `env_error`).
+    #[serde(default)]
+    pub env_errors: u64,
     /// Seconds since the last exchange (or since attach, before the first).
     #[serde(default)]
     pub idle_s: f64,
@@ -149,6 +152,9 @@ pub struct ServerStatus {
     /// Env steps truncated for a physics error (non-finite state) since start.
     #[serde(default)]
     pub physics_errors: u64,
+    /// Env steps and resets that failed inside the env (flagged `env_error`) since start.
+    #[serde(default)]
+    pub env_errors: u64,
     /// Leases reclaimed from dead clients since start.
     pub reclaimed_leases: u64,
     /// Live leases.

@@ -32,7 +32,9 @@ pub use layout::{
     ActionLayout, BatchLayout, FieldView, LayoutError, ObsLayout, PAYLOAD_ALIGN, contiguous_strides,
 };
 pub use service_names::{InvalidServerName, ServiceNames};
-pub use spec::{ActionSpec, AutoresetMode, DType, EnvSpec, EnvSpecBuilder, ObsField, ScalarSpec};
+pub use spec::{
+    ActionSpec, AutoresetMode, DType, ENV_ERROR_KEY, EnvSpec, EnvSpecBuilder, ObsField, ScalarSpec,
+};
 pub use status::{Op, ResetFlag, StepStatus};
 pub use version::PROTOCOL_VERSION;
 pub use wire::{ActionHeader, ControlHeader, ObsHeader};

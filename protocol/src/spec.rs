@@ -117,7 +117,8 @@ pub struct EnvSpec {
     pub action: ActionSpec,
     /// Reward range.
     pub reward: ScalarSpec,
-    /// Names of the per-step float32 info values, in order.
+    /// Names of the per-step float32 info values, in order. Every spec built by
+    /// [`EnvSpecBuilder`] ends with [`ENV_ERROR_KEY`].
     pub info_keys: Vec<String>,
     /// Truncation horizon (`truncated` becomes true at this many steps), if any.
     pub max_episode_steps: Option<u64>,
@@ -126,6 +127,14 @@ pub struct EnvSpec {
     /// The resolved env config (defaults filled in), as JSON.
     pub config: serde_json::Value,
 }
+
+/// Info key every spec carries (the builder appends it last): 1 for an env whose step or
+/// reset failed inside the server (the env's code panicked) in this exchange, else 0.
+/// The other envs of the batch are unaffected. The failed env's observation and other
+/// info values are 0, a failed step is truncated, and the env needs a reset (with
+/// same-step autoreset the server tries one at once; the flag is then in both `info`
+/// and `final_info`).
+pub const ENV_ERROR_KEY: &str = "env_error";
 
 /// Builds an [`EnvSpec`], placing observation fields at aligned offsets.
 #[derive(Debug, Clone)]
@@ -236,8 +245,10 @@ impl EnvSpecBuilder {
         self
     }
 
-    /// Finish the spec.
-    pub fn build(self) -> EnvSpec {
+    /// Finish the spec, appending [`ENV_ERROR_KEY`] to the info keys (once).
+    pub fn build(mut self) -> EnvSpec {
+        self.spec.info_keys.retain(|k| k != ENV_ERROR_KEY);
+        self.spec.info_keys.push(ENV_ERROR_KEY.to_owned());
         self.spec
     }
 }
@@ -265,6 +276,7 @@ mod tests {
             .info_key("step")
             .max_episode_steps(Some(10))
             .build();
+        assert_eq!(spec.info_keys, ["step", ENV_ERROR_KEY]);
         let text = serde_json::to_string(&spec).unwrap();
         let back: EnvSpec = serde_json::from_str(&text).unwrap();
         assert_eq!(spec, back);

@@ -66,7 +66,10 @@ pub enum StepStatus {
     NeedsReset = 6,
     /// The server is shutting down; no further exchanges will be answered.
     ServerStopped = 7,
-    /// The env failed internally (`env_index` says which); the lease stays usable.
+    /// The exchange failed outside any one env's step or reset, so nothing could be
+    /// returned (`env_index` says which env, if one). A failure inside one env's step
+    /// or reset is not this: the exchange answers `Ok` with that env flagged
+    /// ([`crate::ENV_ERROR_KEY`]). The lease stays usable.
     EnvFailure = 8,
 }
 

@@ -119,6 +119,9 @@ struct ServeArgs {
     /// Worker threads (0 = one per core).
     #[arg(long)]
     threads: Option<usize>,
+    /// Nice value of the worker threads (0–19).
+    #[arg(long)]
+    worker_nice: Option<i32>,
     /// Microseconds to busy-poll before blocking.
     #[arg(long)]
     spin_us: Option<u64>,
@@ -180,6 +183,7 @@ impl ServeArgs {
         }
         set(&mut config.name, &self.name);
         set(&mut config.threads, &self.threads);
+        set(&mut config.worker_nice, &self.worker_nice);
         set(&mut config.spin_us, &self.spin_us);
         set(&mut config.housekeeping_ms, &self.housekeeping_ms);
         set(&mut config.max_leases, &self.max_leases);
@@ -353,7 +357,7 @@ fn status(target: &Target, json: bool) -> Result<(), String> {
         return Ok(());
     }
     println!(
-        "server {:?}: pid {}, version {} (protocol {}), up {:.1} s, {} threads, {} env steps, {} physics errors, {} leases reclaimed",
+        "server {:?}: pid {}, version {} (protocol {}), up {:.1} s, {} threads, {} env steps, {} physics errors, {} env errors, {} leases reclaimed",
         status.name,
         status.pid,
         status.version,
@@ -362,6 +366,7 @@ fn status(target: &Target, json: bool) -> Result<(), String> {
         status.threads,
         status.env_steps,
         status.physics_errors,
+        status.env_errors,
         status.reclaimed_leases
     );
     if status.leases.is_empty() {
@@ -369,12 +374,14 @@ fn status(target: &Target, json: bool) -> Result<(), String> {
     }
     for lease in &status.leases {
         println!(
-            "  lease {:>20}  {:<28} x{:<5} {:>10} exchanges {:>12} env steps  age {:>8.1} s  idle {:>7.1} s  pid {:<8} {}",
+            "  lease {:>20}  {:<28} x{:<5} {:>10} exchanges {:>12} env steps {:>5} physics/{:<5} env errors  age {:>8.1} s  idle {:>7.1} s  pid {:<8} {}",
             lease.lease_id,
             lease.env_id,
             lease.num_envs,
             lease.exchanges,
             lease.env_steps,
+            lease.physics_errors,
+            lease.env_errors,
             lease.age_s,
             lease.idle_s,
             lease.client_pid.map_or("?".to_owned(), |p| p.to_string()),

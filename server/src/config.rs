@@ -17,6 +17,12 @@ pub struct ServeConfig {
     pub name: String,
     /// Worker threads stepping env batches; 0 means one per core. Default 0.
     pub threads: usize,
+    /// Nice value of the worker threads (0–19). Default 5: when every core is busy, the
+    /// dispatcher (which runs small leases' exchanges itself) and the client processes
+    /// get a core first, so a big batch stepping on the workers does not hold back a
+    /// small lease's step (measured: docs/results/benchmarks.md, "Head of line"); with
+    /// idle cores it changes nothing.
+    pub worker_nice: i32,
     /// Microseconds to busy-poll for work before blocking on an event. Default 200:
     /// long enough to catch a client's next step without a ≈ 50 µs wake-up, short
     /// enough that an idle server costs nothing.
@@ -60,6 +66,7 @@ impl Default for ServeConfig {
         Self {
             name: "default".to_owned(),
             threads: 0,
+            worker_nice: 5,
             spin_us: 200,
             housekeeping_ms: 100,
             max_leases: 256,
@@ -157,6 +164,9 @@ impl ServeConfig {
         if self.threads > 1024 {
             return Err(invalid("threads", "must be at most 1024"));
         }
+        if !(0..=19).contains(&self.worker_nice) {
+            return Err(invalid("worker_nice", "must be 0 to 19"));
+        }
         echogym_protocol::ServiceNames::new(&self.name).map_err(|e| ConfigError::Invalid {
             key: "name",
             message: e.to_string(),
@@ -181,6 +191,7 @@ impl ServeConfig {
             name: self.name.clone(),
             location: self.ipc.clone(),
             threads: self.threads,
+            worker_nice: self.worker_nice,
             spin: Duration::from_micros(self.spin_us),
             housekeeping: Duration::from_millis(self.housekeeping_ms),
             max_leases: self.max_leases,

@@ -3,6 +3,11 @@
 One exchange with the server steps the whole batch (in parallel on the server's
 workers). Observations, rewards and flags are **read-only numpy views onto shared
 memory, valid until the next** ``step``/``reset``; copy what you keep longer.
+
+An env that fails inside the server (its code panicked) fails alone: ``infos["env_error"]``
+is 1 for it (every env declares the key), its observation row is zeros, a failed step is
+truncated and the env needs a reset (with ``"same_step"`` autoreset the server resets it
+within the step); the other envs' results are as usual.
 """
 
 from __future__ import annotations

@@ -3,21 +3,28 @@
 //! An exchange reads actions from the action sample and writes observations, rewards,
 //! flags and info straight into the observation sample. It runs as named stages:
 //! validate (nothing is touched if any input is bad) → clip actions → split the
-//! observation sample into per-env jobs → step/reset in parallel → report.
+//! observation sample into per-env jobs → step/reset in parallel → contain failed envs
+//! → report.
+//!
+//! An env whose step or reset panics fails alone: the other envs' results are kept, and
+//! the failed env's row is zeroed, flagged ([`ENV_ERROR_KEY`]), a failed step truncated,
+//! and the env needs a reset (with same-step autoreset one is tried at once).
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use echogym_protocol::{
-    AutoresetMode, BatchLayout, DType, EnvSpec, LayoutError, ObsField, Op, ResetFlag, StepStatus,
+    AutoresetMode, BatchLayout, DType, ENV_ERROR_KEY, EnvSpec, LayoutError, ObsField, Op,
+    ResetFlag, StepStatus,
 };
 
+use super::panic::panic_message;
 use super::workers::WorkerPool;
 use crate::envs::{Env, EnvBuildError, EnvFactory, EnvOutput, PHYSICS_ERROR_KEY, Transition};
 
-/// Why an exchange was refused or failed. Nothing was stepped unless `status` is
-/// `EnvFailure`.
+/// Why an exchange was refused. Nothing was stepped. (A failing env does not fail
+/// the exchange: it is flagged in its row, see the module docs.)
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
 #[error("{status:?} (env {env_index:?}, element {element_index:?})")]
 pub struct ExchangeError {
@@ -30,7 +37,8 @@ pub struct ExchangeError {
 }
 
 impl ExchangeError {
-    fn new(status: StepStatus) -> Self {
+    /// `status`, about no env in particular.
+    pub fn new(status: StepStatus) -> Self {
         Self {
             status,
             env_index: None,
@@ -38,7 +46,8 @@ impl ExchangeError {
         }
     }
 
-    fn at(status: StepStatus, env: usize) -> Self {
+    /// `status` about `env`.
+    pub fn at(status: StepStatus, env: usize) -> Self {
         Self {
             status,
             env_index: Some(env),
@@ -66,7 +75,8 @@ struct Job<'a> {
     truncated: &'a mut u8,
     final_record: Option<&'a mut [u8]>,
     final_info: Option<&'a mut [f32]>,
-    panicked: bool,
+    /// The env's step or reset panicked (see [`ENV_ERROR_KEY`]).
+    env_error: bool,
     /// The step produced a non-finite observation or reward (see [`PHYSICS_ERROR_KEY`]).
     physics_error: bool,
 }
@@ -78,6 +88,8 @@ pub struct Exchanged {
     pub steps: u64,
     /// Steps truncated for a physics error.
     pub physics_errors: u64,
+    /// Envs whose step or reset failed (panicked) and were flagged.
+    pub env_errors: u64,
 }
 
 /// The typed blocks of an action sample: actions, reset flags, seeds.
@@ -91,8 +103,13 @@ pub struct EnvBatch {
     slots: Vec<Slot>,
     clipped: Vec<f32>,
     step_cost_ns: f64,
+    /// Measured cost of a whole exchange run on one thread, in ns, per op (steps, resets);
+    /// 0 until measured. The dispatcher runs cheap exchanges itself.
+    serial_cost_ns: [f64; 2],
     /// Index of [`PHYSICS_ERROR_KEY`] in the spec's info keys, if declared.
     physics_error_info: Option<usize>,
+    /// Index of [`ENV_ERROR_KEY`] in the spec's info keys (every built spec has it).
+    env_error_info: Option<usize>,
 }
 
 /// Why a batch was not built.
@@ -125,15 +142,6 @@ pub enum BatchBuildError {
         /// Envs asked for.
         wanted: usize,
     },
-}
-
-/// The message of a caught panic.
-pub(crate) fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
-    payload
-        .downcast_ref::<&str>()
-        .map(|s| (*s).to_owned())
-        .or_else(|| payload.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "(no message)".to_owned())
 }
 
 impl EnvBatch {
@@ -178,14 +186,17 @@ impl EnvBatch {
             });
         }
         let physics_error_info = spec.info_keys.iter().position(|k| k == PHYSICS_ERROR_KEY);
+        let env_error_info = spec.info_keys.iter().position(|k| k == ENV_ERROR_KEY);
         Ok(Self {
             clipped: vec![0.0; num_envs * spec.action.size],
             physics_error_info,
+            env_error_info,
             spec,
             layout,
             mode,
             slots,
             step_cost_ns: 0.0,
+            serial_cost_ns: [0.0; 2],
         })
     }
 
@@ -204,6 +215,13 @@ impl EnvBatch {
         self.slots.len()
     }
 
+    /// What an exchange of `op` costs on one thread, in ns (an average of the last
+    /// ones), `None` before the first.
+    pub fn serial_cost_ns(&self, op: Op) -> Option<f64> {
+        let cost = self.serial_cost_ns[op_index(op)];
+        (cost > 0.0).then_some(cost)
+    }
+
     /// True for a batch of no envs (never built).
     pub fn is_empty(&self) -> bool {
         self.slots.is_empty()
@@ -211,10 +229,11 @@ impl EnvBatch {
 
     /// Run one exchange: read `action` (the action sample payload), write `obs` (the
     /// observation sample payload, zero-filled). Returns the env steps taken and how many
-    /// were truncated for a physics error.
+    /// were truncated for a physics error or failed (flagged, the others' results kept).
+    /// With `pool`, the envs step in parallel when that pays; without, on this thread.
     pub fn exchange(
         &mut self,
-        pool: &WorkerPool,
+        pool: Option<&WorkerPool>,
         op: Op,
         action: &[u8],
         obs: &mut [u8],
@@ -231,34 +250,51 @@ impl EnvBatch {
         let fields = self.spec.observation.as_slice();
         let (mode, max_steps) = (self.mode, self.spec.max_episode_steps);
         let cost = self.step_cost_ns;
-        let physics_error_info = self.physics_error_info;
-        pool.for_each(&mut self.slots, &mut jobs, cost, |slot, job| {
+        let (physics_error_info, env_error_info) = (self.physics_error_info, self.env_error_info);
+        let work = |slot: &mut Slot, job: &mut Job<'_>| {
             let outcome = catch_unwind(AssertUnwindSafe(|| {
                 run_job(slot, job, fields, op, mode, max_steps, physics_error_info);
             }));
             if outcome.is_err() {
-                job.panicked = true;
-                slot.needs_reset = true;
+                contain_failure(slot, job, fields, op, mode, env_error_info);
             }
-        });
-        let panicked = jobs.iter().position(|j| j.panicked);
+        };
+        let threads = match pool {
+            Some(pool) => pool.for_each(&mut self.slots, &mut jobs, cost, work),
+            None => {
+                self.slots
+                    .iter_mut()
+                    .zip(jobs.iter_mut())
+                    .for_each(|(slot, job)| work(slot, job));
+                1
+            }
+        };
+        let elapsed = started.elapsed();
         let physics_errors = jobs.iter().filter(|j| j.physics_error).count() as u64;
+        let env_errors = jobs.iter().filter(|j| j.env_error).count() as u64;
         drop(jobs);
+        // On one thread it would take about this long (an upper bound when the threads
+        // were unevenly loaded: the safe side for the dispatcher's inline choice).
+        let serial = &mut self.serial_cost_ns[op_index(op)];
+        let busy = elapsed.as_nanos() as f64 * threads as f64;
+        *serial = if *serial == 0.0 {
+            busy.max(1.0)
+        } else {
+            0.8 * *serial + 0.2 * busy
+        };
         if steps > 0 {
-            let per_env = started.elapsed().as_nanos() as f64 / self.slots.len() as f64;
+            let per_env = elapsed.as_nanos() as f64 / self.slots.len() as f64;
             self.step_cost_ns = if self.step_cost_ns == 0.0 {
                 per_env
             } else {
                 0.9 * self.step_cost_ns + 0.1 * per_env
             };
         }
-        match panicked {
-            Some(env) => Err(ExchangeError::at(StepStatus::EnvFailure, env)),
-            None => Ok(Exchanged {
-                steps,
-                physics_errors,
-            }),
-        }
+        Ok(Exchanged {
+            steps,
+            physics_errors,
+            env_errors,
+        })
     }
 
     /// Check every input before anything changes; return the typed action-sample blocks.
@@ -316,6 +352,14 @@ impl EnvBatch {
                 *out = x.clamp(low[i], high[i]);
             }
         }
+    }
+}
+
+/// Index of `op` in per-op tables.
+fn op_index(op: Op) -> usize {
+    match op {
+        Op::Step => 0,
+        Op::Reset => 1,
     }
 }
 
@@ -390,14 +434,13 @@ fn split_jobs<'a>(
             } else {
                 final_info.as_mut().and_then(|c| c.next())
             },
-            panicked: false,
+            env_error: false,
             physics_error: false,
         });
     }
     Ok(jobs)
 }
 
-/// One env's work for one exchange.
 /// Replace the non-finite values of `record`'s float fields by 0; whether any was.
 fn zero_non_finite(fields: &[ObsField], record: &mut [u8]) -> bool {
     let mut repaired = false;
@@ -414,6 +457,7 @@ fn zero_non_finite(fields: &[ObsField], record: &mut [u8]) -> bool {
     repaired
 }
 
+/// One env's work for one exchange.
 fn run_job(
     slot: &mut Slot,
     job: &mut Job<'_>,
@@ -476,5 +520,63 @@ fn run_job(
             slot.episode_steps = 0;
             slot.needs_reset = false;
         }
+    }
+}
+
+/// An env's step or reset panicked: zero what it wrote, flag it ([`ENV_ERROR_KEY`]),
+/// truncate a failed step and mark the env for a reset; with same-step autoreset, a
+/// failed step's env is reset at once (the zeroed row and the flag go to `final_obs`/
+/// `final_info`, the flag also to `info`), and stays marked if that reset panics too.
+fn contain_failure(
+    slot: &mut Slot,
+    job: &mut Job<'_>,
+    fields: &[ObsField],
+    op: Op,
+    mode: AutoresetMode,
+    env_error_info: Option<usize>,
+) {
+    job.env_error = true;
+    job.physics_error = false;
+    slot.needs_reset = true;
+    job.record.fill(0);
+    job.info.fill(0.0);
+    flag_env_error(job.info, env_error_info);
+    *job.reward = 0.0;
+    *job.terminated = 0;
+    // A failed step ends the episode (truncated); a failed reset answers a reset, whose
+    // flags mean nothing (torchrl refuses a reset that reports `done`), so stays 0.
+    let stepping = op == Op::Step && job.reset == ResetFlag::Keep;
+    *job.truncated = u8::from(stepping);
+    if !(stepping && mode == AutoresetMode::SameStep) {
+        return;
+    }
+    if let Some(final_record) = job.final_record.as_deref_mut() {
+        final_record.fill(0);
+    }
+    if let Some(final_info) = job.final_info.as_deref_mut() {
+        final_info.fill(0.0);
+        flag_env_error(final_info, env_error_info);
+    }
+    job.info.fill(0.0);
+    let reset = catch_unwind(AssertUnwindSafe(|| {
+        let mut out = EnvOutput::new(fields, job.record, job.info);
+        slot.env.reset(None, &mut out);
+    }));
+    if reset.is_ok() {
+        slot.episode_steps = 0;
+        slot.needs_reset = false;
+    } else {
+        job.record.fill(0);
+        job.info.fill(0.0);
+    }
+    flag_env_error(job.info, env_error_info);
+}
+
+/// Set the [`ENV_ERROR_KEY`] value of an info row to 1.
+fn flag_env_error(info: &mut [f32], env_error_info: Option<usize>) {
+    if let Some(k) = env_error_info
+        && let Some(v) = info.get_mut(k)
+    {
+        *v = 1.0;
     }
 }

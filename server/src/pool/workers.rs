@@ -24,9 +24,30 @@ pub struct PoolStartError {
     source: rayon::ThreadPoolBuildError,
 }
 
+/// Set the calling thread's nice value (background work yields the cores to the
+/// dispatcher and to client processes when all are busy). Raising one's nice value
+/// needs no privilege; a failure is logged and ignored.
+pub(crate) fn renice_this_thread(nice: i32) {
+    if nice == 0 {
+        return;
+    }
+    // SAFETY: setpriority on this thread's own id changes only its scheduling weight.
+    let result = unsafe {
+        libc::setpriority(
+            libc::PRIO_PROCESS,
+            libc::gettid() as libc::id_t,
+            nice as libc::c_int,
+        )
+    };
+    if result != 0 {
+        tracing::debug!(nice, "could not change a thread's nice value");
+    }
+}
+
 impl WorkerPool {
-    /// Start `threads` workers (0 = one per core).
-    pub fn new(threads: usize) -> Result<Self, PoolStartError> {
+    /// Start `threads` workers (0 = one per core) at nice value `nice` (see
+    /// `ServeConfig::worker_nice`).
+    pub fn new(threads: usize, nice: i32) -> Result<Self, PoolStartError> {
         let threads = if threads == 0 {
             std::thread::available_parallelism().map_or(1, |n| n.get())
         } else {
@@ -35,6 +56,15 @@ impl WorkerPool {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .thread_name(|i| format!("echogym-worker-{i}"))
+            .start_handler(move |_| renice_this_thread(nice))
+            // Spawned exchanges catch their panics; this is the net under that net (a
+            // panic reaching rayon would otherwise abort the server).
+            .panic_handler(|payload| {
+                tracing::error!(
+                    message = %super::panic::panic_message(payload.as_ref()),
+                    "a worker task panicked"
+                );
+            })
             .build()
             .map_err(|source| PoolStartError { threads, source })?;
         Ok(Self { pool, threads })
@@ -50,22 +80,28 @@ impl WorkerPool {
         self.pool.install(op)
     }
 
+    /// Run `task` on a worker, without waiting for it (an exchange handed off by the
+    /// dispatcher). Tasks queue behind the pool's current work.
+    pub fn spawn(&self, task: impl FnOnce() + Send + 'static) {
+        self.pool.spawn(task);
+    }
+
     /// Run `work` on every `(item, job)` pair, in parallel when `cost_per_item_ns` makes
-    /// it worthwhile.
+    /// it worthwhile. Returns how many threads it used at most (1: this one).
     pub fn for_each<A: Send, B: Send>(
         &self,
         items: &mut [A],
         jobs: &mut [B],
         cost_per_item_ns: f64,
         work: impl Fn(&mut A, &mut B) + Sync + Send,
-    ) {
+    ) -> usize {
         let n = items.len();
         if self.threads <= 1 || n <= 1 || cost_per_item_ns * n as f64 <= PARALLEL_THRESHOLD_NS {
             items
                 .iter_mut()
                 .zip(jobs.iter_mut())
                 .for_each(|(a, b)| work(a, b));
-            return;
+            return 1;
         }
         // Chunks of at least ~threshold/2 of work each, and at most one per thread.
         let per_chunk = ((PARALLEL_THRESHOLD_NS / 2.0) / cost_per_item_ns.max(1.0)).ceil() as usize;
@@ -77,5 +113,6 @@ impl WorkerPool {
                 .with_min_len(min_len)
                 .for_each(|(a, b)| work(a, b));
         });
+        n.div_ceil(min_len).min(self.threads)
     }
 }

@@ -12,7 +12,7 @@ use echogym_protocol::{
     AttachReply, AttachRequest, BatchLayout, ControlError, ControlErrorKind, ControlReply,
 };
 
-use super::builder::BuildJob;
+use super::builder::{AttachBuildError, BuildJob};
 use super::dispatcher::Dispatcher;
 use super::lease::Lease;
 use super::pending::PendingAttach;
@@ -152,12 +152,17 @@ impl Dispatcher {
             spec,
             shm_bytes,
         } = plan;
+        let lease_id = (u64::from(self.instance) << 32) | u64::from(self.next_lease);
+        self.next_lease += 1;
         let queued = self.builder.build(BuildJob {
             ticket,
             spec,
             num_envs: attach.num_envs,
             mode: attach.autoreset_mode,
             cancel: cancel.clone(),
+            lease_id,
+            client_node,
+            client_label: attach.client_label.clone(),
         });
         if !queued {
             respond(
@@ -190,9 +195,9 @@ impl Dispatcher {
                 continue;
             };
             let pending = self.pending.swap_remove(index);
-            let batch = match built.result {
-                Ok(batch) => batch,
-                Err(BatchBuildError::Cancelled { built, wanted }) => {
+            let lease = match built.result {
+                Ok(lease) => lease,
+                Err(AttachBuildError::Build(BatchBuildError::Cancelled { built, wanted })) => {
                     tracing::info!(
                         client = %pending.client_label,
                         env = %pending.env_id,
@@ -204,8 +209,9 @@ impl Dispatcher {
                 }
                 Err(e) => {
                     let kind = match e {
-                        BatchBuildError::Panicked { .. } => ControlErrorKind::Internal,
-                        _ => ControlErrorKind::InvalidConfig,
+                        AttachBuildError::Build(BatchBuildError::Panicked { .. })
+                        | AttachBuildError::Open(_) => ControlErrorKind::Internal,
+                        AttachBuildError::Build(_) => ControlErrorKind::InvalidConfig,
                     };
                     tracing::warn!(client = %pending.client_label, error = %e, "attach failed");
                     respond(&pending.request, &error(kind, e.to_string()));
@@ -218,32 +224,17 @@ impl Dispatcher {
                     env = %pending.env_id,
                     "attach dropped: the client stopped waiting before its envs were built"
                 );
-                self.builder.discard(batch);
+                self.retire(lease);
                 continue;
             }
-            let lease_id = (u64::from(self.instance) << 32) | u64::from(self.next_lease);
-            self.next_lease += 1;
-            let lease = match Lease::open(
-                &self.node,
-                &self.names,
-                lease_id,
-                batch,
-                pending.client_node,
-                pending.client_label.clone(),
-            ) {
-                Ok(lease) => lease,
-                Err(e) => {
-                    respond(
-                        &pending.request,
-                        &error(ControlErrorKind::Internal, e.to_string()),
-                    );
-                    continue;
-                }
+            let lease_id = lease.id;
+            let Some(spec) = lease.batch().map(|b| b.spec().clone()) else {
+                continue; // a new lease holds its batch
             };
             let reply = AttachReply {
                 lease_id,
-                spec: lease.batch.spec().clone(),
-                layout: lease.batch.layout().clone(),
+                spec,
+                layout: lease.layout().clone(),
                 autoreset_mode: pending.mode,
                 server_spin_us: self.options.spin.as_micros() as u64,
                 server_node_id: self.node.id().value().to_string(),
@@ -281,7 +272,7 @@ impl Dispatcher {
         let leases = self.leases.iter().filter(|l| l.client_node == client);
         let pending = self.pending.iter().filter(|p| p.client_node == client);
         let count = leases.clone().count() + pending.clone().count();
-        let envs = leases.clone().map(|l| l.batch.len()).sum::<usize>()
+        let envs = leases.clone().map(|l| l.num_envs()).sum::<usize>()
             + pending.clone().map(|p| p.num_envs).sum::<usize>();
         let bytes =
             leases.map(lease_shm_bytes).sum::<u64>() + pending.map(|p| p.shm_bytes).sum::<u64>();
@@ -290,20 +281,29 @@ impl Dispatcher {
 
     /// Bytes of lease shared memory held and being built.
     fn shm_bytes_in_use(&self) -> u64 {
-        self.leases.iter().map(lease_shm_bytes).sum::<u64>()
+        self.leases
+            .iter()
+            .chain(&self.closing)
+            .map(lease_shm_bytes)
+            .sum::<u64>()
             + self.pending.iter().map(|p| p.shm_bytes).sum::<u64>()
     }
 
     /// Envs held by leases and being built.
     pub(super) fn envs_in_use(&self) -> usize {
-        let held: usize = self.leases.iter().map(|l| l.batch.len()).sum();
+        let held: usize = self
+            .leases
+            .iter()
+            .chain(&self.closing)
+            .map(|l| l.num_envs())
+            .sum();
         let building: usize = self.pending.iter().map(|p| p.num_envs).sum();
         held + building
     }
 }
 
 fn lease_shm_bytes(lease: &Lease) -> u64 {
-    lease.batch.layout().shared_memory_bytes() as u64
+    lease.layout().shared_memory_bytes() as u64
 }
 
 /// Bytes as MiB for messages.

@@ -59,7 +59,7 @@ impl Dispatcher {
             Some(index) => {
                 let lease = self.leases.remove(index);
                 tracing::info!(lease = lease_id, client = %lease.client_label, "lease detached");
-                self.builder.discard(lease.close());
+                self.retire(lease);
                 ControlReply::Detached { lease_id }
             }
             None => error(
@@ -80,19 +80,21 @@ impl Dispatcher {
             threads: self.pool.threads(),
             env_steps: self.env_steps,
             physics_errors: self.physics_errors,
+            env_errors: self.env_errors,
             reclaimed_leases: self.reclaimed,
             leases: self
                 .leases
                 .iter()
                 .map(|l| LeaseStatus {
                     lease_id: l.id,
-                    env_id: l.batch.spec().env_id.clone(),
-                    num_envs: l.batch.len(),
+                    env_id: l.env_id.clone(),
+                    num_envs: l.num_envs(),
                     client_label: l.client_label.clone(),
                     exchanges: l.exchanges,
                     age_s: l.created.elapsed().as_secs_f64(),
                     env_steps: l.env_steps,
                     physics_errors: l.physics_errors,
+                    env_errors: l.env_errors,
                     idle_s: l.last_activity.elapsed().as_secs_f64(),
                     client_pid: pids.get(&l.client_node).copied(),
                 })
@@ -115,7 +117,7 @@ impl Dispatcher {
         use iceoryx2::node::NodeView;
         use iceoryx2::prelude::*;
         let mut pids = std::collections::HashMap::new();
-        let _ = Node::<ipc::Service>::list(&self.iox_config, |state| {
+        let _ = Node::<super::Ipc>::list(&self.iox_config, |state| {
             if let NodeState::Alive(view) = &state
                 && let Some(details) = view.details()
                 && let Some(pid) = details

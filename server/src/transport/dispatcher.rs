@@ -1,4 +1,4 @@
-//! The dispatcher: the server's one thread that owns every port.
+//! The dispatcher: the server thread that polls every port and answers control requests.
 //!
 //! # Wake-up protocol (spin, then block)
 //! iceoryx2 events coalesce: after a listener drains, the first `notify` sends one
@@ -11,8 +11,17 @@
 //!
 //! Housekeeping (every `housekeeping` interval, default 100 ms) reclaims leases of dead
 //! clients, reacts to shutdown requests and to the death of a parent process.
+//!
+//! # Exchanges off the dispatcher
+//! A lease's exchange that costs at most [`INLINE_BUDGET_NS`] (measured, per op) runs on
+//! the dispatcher thread. Any other is handed to the worker pool with its batch and
+//! samples ([`Handoff`]): the worker returns the batch through a channel, then
+//! publishes; the dispatcher keeps polling meanwhile, so a big batch delays no other
+//! lease's exchange (ARCHITECTURE.md, "Exchanges off the dispatcher").
 
+use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::Arc;
+use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, channel};
 use std::time::{Duration, Instant};
 
 use echogym_protocol::{
@@ -20,22 +29,29 @@ use echogym_protocol::{
     ServiceNames, StepStatus,
 };
 use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::server::Server;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
 use iceoryx2::sample_mut::SampleMut;
-use rayon::prelude::*;
 
+use super::Ipc;
 use super::builder::Builder;
 use super::error::StartError;
-use super::lease::Lease;
+use super::lease::{Lease, publish};
 use super::pending::PendingAttach;
 use super::reply::{error, parse_control, respond};
 use super::shutdown::Shutdown;
 use crate::envs::EnvRegistry;
-use crate::pool::WorkerPool;
+use crate::pool::{EnvBatch, ExchangeError, Exchanged, WorkerPool};
 /// How often the dispatcher looks for finished builds while it would otherwise block.
 const BUILD_POLL: Duration = Duration::from_millis(1);
+
+/// An exchange measured to cost at most this on one thread runs on the dispatcher
+/// thread itself (waking a worker and handing the samples over costs more than it
+/// saves); anything else, or an exchange of unknown cost, goes to the pool. It is what
+/// one cheap lease can delay the others by.
+pub(super) const INLINE_BUDGET_NS: f64 = 100_000.0;
 
 use echogym_protocol::services::{
     Access, ControlService, EventService, MAX_CLIENTS, ServiceError, control_service, event_service,
@@ -51,6 +67,8 @@ pub struct DispatcherOptions {
     pub location: IpcLocation,
     /// Worker threads (0 = one per core).
     pub threads: usize,
+    /// Nice value of the worker threads.
+    pub worker_nice: i32,
     /// Busy-poll time before blocking.
     pub spin: Duration,
     /// Housekeeping period.
@@ -74,42 +92,120 @@ pub struct DispatcherOptions {
 /// The running server: every port, lease and counter.
 pub struct Dispatcher {
     pub(super) options: DispatcherOptions,
-    pub(super) names: ServiceNames,
     pub(super) iox_config: Config,
     pub(super) registry: Arc<EnvRegistry>,
     pub(super) builder: Builder,
     pub(super) pending: Vec<PendingAttach>,
     pub(super) next_ticket: u64,
-    pub(super) pool: WorkerPool,
+    pub(super) pool: Arc<WorkerPool>,
     pub(super) leases: Vec<Lease>,
+    /// Leases detached or reclaimed while their exchange ran on the pool: closed when
+    /// the batch comes back.
+    pub(super) closing: Vec<Lease>,
+    /// Exchanges running on the pool.
+    in_flight: usize,
+    completed_tx: Sender<Completed>,
+    completed: Receiver<Completed>,
     pub(super) started: Instant,
     pub(super) instance: u32,
     pub(super) next_lease: u32,
     pub(super) env_steps: u64,
     /// Env steps truncated for a physics error over the server's life.
     pub(super) physics_errors: u64,
+    /// Env steps and resets that failed inside the env (flagged) over the server's life.
+    pub(super) env_errors: u64,
     pub(super) reclaimed: u64,
     pub(super) shutdown: Shutdown,
     last_reply: Instant,
-    control: Server<
-        ipc::Service,
-        [u8],
-        echogym_protocol::ControlHeader,
-        [u8],
-        echogym_protocol::ControlHeader,
-    >,
-    wake: Listener<ipc::Service>,
-    _control_service: ControlService<ipc::Service>,
-    _wake_service: EventService<ipc::Service>,
-    pub(super) node: Node<ipc::Service>,
+    control:
+        Server<Ipc, [u8], echogym_protocol::ControlHeader, [u8], echogym_protocol::ControlHeader>,
+    wake: Listener<Ipc>,
+    _control_service: ControlService<Ipc>,
+    _wake_service: EventService<Ipc>,
+    pub(super) node: Node<Ipc>,
 }
 
-/// One ready exchange: the lease, its action sample and the loaned observation sample.
-struct Ready {
-    lease: usize,
+/// An exchange handed to the pool: the batch and both samples travel with it.
+struct Handoff {
+    lease: u64,
     op: Op,
-    action: Sample<ipc::Service, [u8], ActionHeader>,
-    obs: SampleMut<ipc::Service, [u8], ObsHeader>,
+    batch: EnvBatch,
+    action: Sample<Ipc, [u8], ActionHeader>,
+    obs: SampleMut<Ipc, [u8], ObsHeader>,
+    notifier: Arc<Notifier<Ipc>>,
+}
+
+/// An exchange that ran on the pool, its batch back for the dispatcher.
+struct Completed {
+    lease: u64,
+    batch: EnvBatch,
+    result: Result<Exchanged, ExchangeError>,
+}
+
+impl Handoff {
+    /// Run on a worker: exchange, give the batch back, then publish (in that order,
+    /// so the batch is back before the client can send its next action).
+    fn run(self, pool: &WorkerPool, done: &Sender<Completed>) {
+        let Self {
+            lease,
+            op,
+            mut batch,
+            action,
+            mut obs,
+            notifier,
+        } = self;
+        let result = run_exchange(&mut batch, Some(pool), op, &action, &mut obs);
+        drop(action);
+        if done
+            .send(Completed {
+                lease,
+                batch,
+                result,
+            })
+            .is_err()
+        {
+            tracing::debug!(
+                lease,
+                "the dispatcher is gone; an exchange's batch is dropped"
+            );
+        }
+        publish(lease, obs, &notifier);
+    }
+}
+
+/// Run one exchange of `batch` (on `pool`, or on this thread) and write the observation
+/// header. A panic outside every env's own step and reset (which the batch contains)
+/// fails the whole exchange with `EnvFailure`: nothing could be returned.
+fn run_exchange(
+    batch: &mut EnvBatch,
+    pool: Option<&WorkerPool>,
+    op: Op,
+    action: &Sample<Ipc, [u8], ActionHeader>,
+    obs: &mut SampleMut<Ipc, [u8], ObsHeader>,
+) -> Result<Exchanged, ExchangeError> {
+    let seq = action.user_header().seq;
+    let result = catch_unwind(AssertUnwindSafe(|| {
+        batch.exchange(pool, op, action.payload(), obs.payload_mut())
+    }))
+    .unwrap_or_else(|payload| {
+        tracing::warn!(
+            message = %crate::pool::panic_message(payload.as_ref()),
+            "an exchange panicked outside its envs"
+        );
+        Err(ExchangeError::new(StepStatus::EnvFailure))
+    });
+    let (status, env_index, element_index) = match &result {
+        Ok(_) => (StepStatus::Ok, None, None),
+        Err(e) => (e.status, e.env_index, e.element_index),
+    };
+    *obs.user_header_mut() = ObsHeader {
+        seq,
+        status: status as u32,
+        env_index: env_index.map_or(u32::MAX, |i| i as u32),
+        element_index: element_index.map_or(u32::MAX, |i| i as u32),
+        num_envs: batch.len() as u32,
+    };
+    result
 }
 
 impl Dispatcher {
@@ -129,7 +225,7 @@ impl Dispatcher {
             .config(&iox_config)
             .name(&NodeName::new(&node_name).map_err(|e| StartError::Node(format!("{e:?}")))?)
             .signal_handling_mode(SignalHandlingMode::Disabled)
-            .create::<ipc::Service>()
+            .create::<Ipc>()
             .map_err(|e| StartError::Node(format!("{e:?}")))?;
         node.try_cleanup_dead_nodes();
         super::permissions::harden(&options.location);
@@ -162,9 +258,26 @@ impl Dispatcher {
             .listener_builder()
             .create()
             .map_err(|e| ServiceError::new(&names.wake(), e))?;
-        let pool = WorkerPool::new(options.threads)?;
+        let pool = Arc::new(WorkerPool::new(options.threads, options.worker_nice)?);
+        let (completed_tx, completed) = channel();
         let registry = Arc::new(registry);
-        let builder = Builder::start(registry.clone()).map_err(StartError::Builder)?;
+        // The builder opens new leases' services through a node of its own (a node is
+        // not shared between threads).
+        let builder_node = NodeBuilder::new()
+            .config(&iox_config)
+            .name(
+                &NodeName::new(&format!(
+                    "echogym-build-{}-{}",
+                    options.name,
+                    std::process::id()
+                ))
+                .map_err(|e| StartError::Node(format!("{e:?}")))?,
+            )
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<Ipc>()
+            .map_err(|e| StartError::Node(format!("{e:?}")))?;
+        let builder =
+            Builder::start(registry.clone(), builder_node, names).map_err(StartError::Builder)?;
         let instance = (std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.subsec_nanos())
@@ -179,7 +292,6 @@ impl Dispatcher {
             "echogym server listening"
         );
         Ok(Self {
-            names,
             iox_config,
             registry,
             builder,
@@ -187,11 +299,16 @@ impl Dispatcher {
             next_ticket: 1,
             pool,
             leases: Vec::new(),
+            closing: Vec::new(),
+            in_flight: 0,
+            completed_tx,
+            completed,
             started: Instant::now(),
             instance,
             next_lease: 1,
             env_steps: 0,
             physics_errors: 0,
+            env_errors: 0,
             reclaimed: 0,
             shutdown,
             last_reply: Instant::now(),
@@ -285,97 +402,103 @@ impl Dispatcher {
         served
     }
 
+    /// Take back the batches of exchanges that ended on the pool, then start the
+    /// exchange of every idle lease with an action waiting. True if anything happened.
     fn serve_leases(&mut self) -> bool {
-        let mut ready = Vec::new();
-        for (index, lease) in self.leases.iter_mut().enumerate() {
-            let Some(action) = lease.poll() else { continue };
-            let header = *action.user_header();
-            match check_header(&header, lease) {
-                Err(status) => lease.publish_status(header.seq, status, None, None),
-                Ok(op) => match lease.loan() {
-                    Some(obs) => ready.push(Ready {
-                        lease: index,
-                        op,
-                        action,
-                        obs,
-                    }),
-                    None => lease.hold(action),
-                },
+        let mut served = false;
+        while let Ok(done) = self.completed.try_recv() {
+            self.complete(done);
+            served = true;
+        }
+        for lease in &mut self.leases {
+            if lease.in_flight() {
+                continue;
             }
+            let Some(action) = lease.poll() else { continue };
+            served = true;
+            let header = *action.user_header();
+            let op = match check_header(&header, lease) {
+                Ok(op) => op,
+                Err(status) => {
+                    lease.publish_status(header.seq, status, None, None);
+                    continue;
+                }
+            };
+            let Some(mut obs) = lease.loan() else {
+                lease.hold(action);
+                continue;
+            };
+            let cheap = lease
+                .batch()
+                .and_then(|b| b.serial_cost_ns(op))
+                .is_some_and(|cost| cost <= INLINE_BUDGET_NS);
+            if cheap && let Some(batch) = lease.batch_mut() {
+                let result = run_exchange(batch, None, op, &action, &mut obs);
+                drop(action);
+                lease.publish(obs);
+                let done = account(lease, &result);
+                self.env_steps += done.steps;
+                self.physics_errors += done.physics_errors;
+                self.env_errors += done.env_errors;
+                continue;
+            }
+            let Some(batch) = lease.take_batch() else {
+                continue;
+            };
+            let handoff = Handoff {
+                lease: lease.id,
+                op,
+                batch,
+                action,
+                obs,
+                notifier: lease.notifier(),
+            };
+            let (pool, done) = (Arc::clone(&self.pool), self.completed_tx.clone());
+            self.in_flight += 1;
+            self.pool.spawn(move || handoff.run(&pool, &done));
         }
-        if ready.is_empty() {
-            return false;
-        }
-        self.exchange_all(&mut ready);
-        for ready in ready {
-            let lease = &self.leases[ready.lease];
-            lease.publish(ready.obs);
-        }
-        true
+        served
     }
 
-    /// Run the exchanges of every ready lease, in parallel across leases when several
-    /// are ready (each batch also parallelizes across its envs).
-    fn exchange_all(&mut self, ready: &mut [Ready]) {
-        let wanted: Vec<usize> = ready.iter().map(|r| r.lease).collect();
-        let mut work: Vec<(Op, &[u8], &mut [u8], u64)> = ready
-            .iter_mut()
-            .map(|r| {
-                let seq = r.action.user_header().seq;
-                (r.op, r.action.payload(), r.obs.payload_mut(), seq)
-            })
-            .collect();
-        let mut batches: Vec<&mut crate::pool::EnvBatch> = self
-            .leases
-            .iter_mut()
-            .enumerate()
-            .filter(|(index, _)| wanted.binary_search(index).is_ok())
-            .map(|(_, lease)| &mut lease.batch)
-            .collect();
-        // `ready` is sorted by lease index already (built in order), so work and
-        // batches line up.
-        let pool = &self.pool;
-        let results: Vec<(
-            u64,
-            Result<crate::pool::Exchanged, crate::pool::ExchangeError>,
-        )> = if work.len() == 1 {
-            let (op, action, obs, seq) = &mut work[0];
-            vec![(*seq, batches[0].exchange(pool, *op, action, obs))]
+    /// An exchange that ran on the pool ended: its batch returns to its lease (or, if
+    /// the lease was detached meanwhile, is dropped off the dispatcher with it).
+    fn complete(&mut self, done: Completed) {
+        self.in_flight -= 1;
+        let Completed {
+            lease: id,
+            batch,
+            result,
+        } = done;
+        if let Some(lease) = self.leases.iter_mut().find(|l| l.id == id) {
+            lease.restore(batch);
+            let done = account(lease, &result);
+            self.env_steps += done.steps;
+            self.physics_errors += done.physics_errors;
+            self.env_errors += done.env_errors;
+        } else if let Some(at) = self.closing.iter().position(|l| l.id == id) {
+            drop(self.closing.swap_remove(at));
+            self.builder.discard(batch);
         } else {
-            pool.install(|| {
-                work.par_iter_mut()
-                    .zip(batches.par_iter_mut())
-                    .map(|((op, action, obs, seq), batch)| {
-                        (*seq, batch.exchange(pool, *op, action, obs))
-                    })
-                    .collect()
-            })
-        };
-        drop(work);
-        drop(batches);
-        for (ready, (seq, result)) in ready.iter_mut().zip(results) {
-            let lease = &mut self.leases[ready.lease];
-            lease.exchanges += 1;
-            lease.last_activity = Instant::now();
-            let header = ready.obs.user_header_mut();
-            header.seq = seq;
-            header.num_envs = lease.batch.len() as u32;
-            header.env_index = u32::MAX;
-            header.element_index = u32::MAX;
-            match result {
-                Ok(done) => {
-                    self.env_steps += done.steps;
-                    lease.env_steps += done.steps;
-                    self.physics_errors += done.physics_errors;
-                    lease.physics_errors += done.physics_errors;
-                    header.status = StepStatus::Ok as u32;
-                }
-                Err(e) => {
-                    tracing::debug!(lease = lease.id, error = %e, "exchange refused");
-                    header.status = e.status as u32;
-                    header.env_index = e.env_index.map_or(u32::MAX, |i| i as u32);
-                    header.element_index = e.element_index.map_or(u32::MAX, |i| i as u32);
-                }
+            self.builder.discard(batch);
+        }
+    }
+
+    /// Close `lease` now, or when its exchange on the pool ends.
+    pub(super) fn retire(&mut self, lease: Lease) {
+        if lease.in_flight() {
+            self.closing.push(lease);
+        } else if let Some(batch) = lease.close() {
+            self.builder.discard(batch);
+        }
+    }
+
+    /// Wait for every exchange on the pool to end (shutdown).
+    fn drain_in_flight(&mut self) {
+        while self.in_flight > 0 {
+            match self.completed.recv_timeout(Duration::from_millis(100)) {
+                Ok(done) => self.complete(done),
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => break,
             }
         }
     }
@@ -398,7 +521,7 @@ impl Dispatcher {
     fn reclaim_dead_clients(&mut self) {
         let mut alive = Vec::new();
         let mut dead = 0usize;
-        let listed = Node::<ipc::Service>::list(&self.iox_config, |state| {
+        let listed = Node::<Ipc>::list(&self.iox_config, |state| {
             match &state {
                 NodeState::Alive(view) => {
                     use iceoryx2::node::NodeView;
@@ -425,7 +548,7 @@ impl Dispatcher {
                 client = %lease.client_label,
                 "reclaimed the lease of a dead client"
             );
-            self.builder.discard(lease.close());
+            self.retire(lease);
         }
         if dead > 0 {
             let cleaned = self.node.try_cleanup_dead_nodes();
@@ -434,6 +557,7 @@ impl Dispatcher {
     }
 
     fn stop(mut self) {
+        self.drain_in_flight();
         for pending in self.pending.drain(..) {
             pending
                 .cancel
@@ -457,11 +581,29 @@ impl Dispatcher {
         }
         let leases = self.leases.len();
         for lease in std::mem::take(&mut self.leases) {
-            self.builder.discard(lease.close());
+            self.retire(lease);
         }
         // Dropping the builder waits for the queued drops (an env that panics while
         // being dropped is caught there, and the server still exits cleanly).
         tracing::info!(name = %self.options.name, leases, "echogym server stopped");
+    }
+}
+
+/// Count an exchange of `lease`; what it adds to the server's totals.
+fn account(lease: &mut Lease, result: &Result<Exchanged, ExchangeError>) -> Exchanged {
+    lease.exchanges += 1;
+    lease.last_activity = Instant::now();
+    match result {
+        Ok(done) => {
+            lease.env_steps += done.steps;
+            lease.physics_errors += done.physics_errors;
+            lease.env_errors += done.env_errors;
+            *done
+        }
+        Err(e) => {
+            tracing::debug!(lease = lease.id, error = %e, "exchange refused");
+            Exchanged::default()
+        }
     }
 }
 
@@ -470,7 +612,7 @@ fn check_header(header: &ActionHeader, lease: &Lease) -> Result<Op, StepStatus> 
     if header.protocol_version != PROTOCOL_VERSION {
         return Err(StepStatus::VersionMismatch);
     }
-    if header.lease_id != lease.id || header.num_envs as usize != lease.batch.len() {
+    if header.lease_id != lease.id || header.num_envs as usize != lease.num_envs() {
         return Err(StepStatus::ShapeMismatch);
     }
     Op::from_u32(header.op).ok_or(StepStatus::UnknownOp)
@@ -481,7 +623,7 @@ fn running_server_pid(config: &Config, name: &str) -> Option<u32> {
     use iceoryx2::node::NodeView;
     let prefix = format!("echogym-serve-{name}-");
     let mut pid = None;
-    let _ = Node::<ipc::Service>::list(config, |state| {
+    let _ = Node::<Ipc>::list(config, |state| {
         if let NodeState::Alive(view) = &state
             && let Some(details) = view.details()
             && let Some(rest) = details.name().to_string().strip_prefix(&prefix)

@@ -1,14 +1,13 @@
 //! Control replies: parsing a request, refusing it, and sending the answer.
 
+use super::Ipc;
 use echogym_protocol::{
     ControlError, ControlErrorKind, ControlHeader, ControlReply, ControlRequest, PROTOCOL_VERSION,
 };
 use iceoryx2::active_request::ActiveRequest;
-use iceoryx2::prelude::ipc;
 
 /// A received control request, kept until it is answered.
-pub(super) type ControlRequestHandle =
-    ActiveRequest<ipc::Service, [u8], ControlHeader, [u8], ControlHeader>;
+pub(super) type ControlRequestHandle = ActiveRequest<Ipc, [u8], ControlHeader, [u8], ControlHeader>;
 
 /// A refusal, logged at debug level.
 pub(super) fn refusal(kind: ControlErrorKind, message: impl Into<String>) -> ControlError {

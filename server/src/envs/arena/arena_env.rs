@@ -397,8 +397,8 @@ impl<T: Task> EnvFactory for ArenaFactory<T> {
                 builder = builder.info_key(key);
             }
         }
-        // Last: written by the batch, not the env (1 on a step truncated because the
-        // physics went non-finite).
+        // Written by the batch, not the env (1 on a step truncated because the physics
+        // went non-finite); `build` appends `env_error` after it.
         builder = builder.info_key(crate::envs::PHYSICS_ERROR_KEY);
         let resolved = serde_json::to_value(&config).expect("config serializes");
         Ok(builder.config(resolved).build())
