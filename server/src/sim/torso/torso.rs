@@ -514,10 +514,10 @@ impl Torso {
         };
         let extra = self.elastic_scale - 1.0;
         let lag = relaxation.lag(&self.u);
-        for i in 0..lag.len() {
+        for (i, lag) in lag.iter().enumerate() {
             let k = self.spring[i] + self.layout.ground[i] * self.edge_k;
             self.diag[i] += dt * dt * extra * k;
-            self.rhs[i] -= dt * k * lag[i];
+            self.rhs[i] -= dt * k * lag;
         }
         for &(i, j, w) in &self.layout.edges {
             let f = dt * self.edge_k * w * (lag[i] - lag[j]);
