@@ -384,6 +384,10 @@ impl Dispatcher {
                 }
             };
             served = true;
+            // A client that saw its observation may ask at once: its exchange's counts
+            // (and batch) are in the channel before the observation is published, so
+            // taking them back first makes `status` and `detach` exact.
+            self.take_back_completed();
             let reply = match parse_control(*request.user_header(), request.payload()) {
                 Err(refusal) => ControlReply::Error(refusal),
                 Ok(ControlRequest::Attach(attach)) => match self.begin_attach(attach) {
@@ -402,14 +406,20 @@ impl Dispatcher {
         served
     }
 
+    /// Take back the batches of exchanges that ended on the pool; true if any.
+    fn take_back_completed(&mut self) -> bool {
+        let mut any = false;
+        while let Ok(done) = self.completed.try_recv() {
+            self.complete(done);
+            any = true;
+        }
+        any
+    }
+
     /// Take back the batches of exchanges that ended on the pool, then start the
     /// exchange of every idle lease with an action waiting. True if anything happened.
     fn serve_leases(&mut self) -> bool {
-        let mut served = false;
-        while let Ok(done) = self.completed.try_recv() {
-            self.complete(done);
-            served = true;
-        }
+        let mut served = self.take_back_completed();
         for lease in &mut self.leases {
             if lease.in_flight() {
                 continue;
