@@ -3,7 +3,7 @@
 //! or two branches with their own time constants when tissue relaxes on two time scales
 //! (a fast and a slow branch: one branch fitted to such data leaves the holds'
 //! curvature and makes held-out presses worse). Element: a Maxwell branch on every
-//! particle joint (`torso.relaxation`, and `torso.second_relaxation` for the second).
+//! elastic element of the torso (`torso.relaxation`, and `torso.second_relaxation` for the second).
 //!
 //! Reported in the catalogue's keys: `tau_s` (stiffness-weighted over the branches) and
 //! `ratio` (all branches' stiffness over the spring's), with `branches` listing each.
@@ -126,7 +126,7 @@ impl Effect for ViscoelasticRelaxation {
             })
             .collect();
         format!(
-            "force relaxes during holds ({}), with memory between pushes; added {} to every particle joint",
+            "force relaxes during holds ({}), with memory between pushes; added {} to every elastic element of the torso",
             listed.join(" and "),
             if listed.len() == 2 {
                 "two Maxwell branches"
