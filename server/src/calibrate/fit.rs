@@ -70,6 +70,9 @@ pub type BlockResiduals<'a> = dyn Fn(&[f64], &[usize]) -> Vec<Vec<f64>> + Sync +
 
 /// Relative cost change below which the fit has converged.
 const TOLERANCE: f64 = 1e-5;
+/// A trial step whose linearised cost reduction is below this share of the cost is not
+/// replayed: the fit is as good as this damping lets the linear model make it.
+const PREDICTED_TOLERANCE: f64 = 1e-4;
 
 /// Minimise `Σ r(x)²` from `x0` within `bounds` with at most `max_iterations` LM steps;
 /// the residuals form `blocks` blocks and parameter `j` moves only the blocks in
@@ -106,14 +109,15 @@ pub fn levenberg_marquardt_blocks(
     let mut lambda = 1e-3;
     let mut convergence = Convergence::IterationLimit;
     let mut jac = DMatrix::zeros(m, n);
-    for iteration in 0..=max_iterations {
-        jacobian(residuals, &x, &r, &offsets, touches, &all, bounds, &mut jac);
-        evaluations += n;
-        if iteration == max_iterations {
-            break;
-        }
+    jacobian(residuals, &x, &r, &offsets, touches, &all, bounds, &mut jac);
+    evaluations += n;
+    // Whether `jac` is a finite-difference Jacobian at `x` (else a Broyden update of one).
+    let mut fresh = true;
+    let mut iteration = 0;
+    while iteration < max_iterations {
         let rv = DVector::from_iterator(m, r.iter().flatten().copied());
         let mut improved = false;
+        let mut tiny = false;
         for _ in 0..8 {
             let Some(step) = damped_step(&jac, &rv, lambda) else {
                 lambda *= 10.0;
@@ -121,11 +125,20 @@ pub fn levenberg_marquardt_blocks(
             };
             let mut candidate: Vec<f64> = x.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
             clamp(&mut candidate);
+            let delta = DVector::from_iterator(n, candidate.iter().zip(&x).map(|(c, x)| c - x));
+            let predicted = cost - (&rv + &jac * &delta).norm_squared();
+            if predicted <= PREDICTED_TOLERANCE * cost {
+                // Not even the linear model gains anything worth a replay at this damping.
+                tiny = true;
+                break;
+            }
             let rc = residuals(&candidate, &all);
             evaluations += 1;
             let c = sum_squares(&rc);
             if c < cost {
                 let relative = (cost - c) / cost.max(1e-300);
+                broyden_update(&mut jac, &delta, &r, &rc, &offsets, touches, bounds);
+                fresh = false;
                 x = candidate;
                 r = rc;
                 cost = c;
@@ -136,17 +149,29 @@ pub fn levenberg_marquardt_blocks(
                 }
                 break;
             }
+            if !fresh {
+                // A failed step on an updated Jacobian: recompute it before damping more.
+                break;
+            }
             lambda *= 8.0;
         }
+        if !improved && !fresh {
+            jacobian(residuals, &x, &r, &offsets, touches, &all, bounds, &mut jac);
+            evaluations += n;
+            fresh = true;
+            continue;
+        }
+        iteration += 1;
         if !improved {
             // No step helps: a minimum if the gradient vanishes there (cosine between
-            // each column and the residual), else a rough cost surface.
+            // each column and the residual) or the linear model promises nothing, else
+            // a rough cost surface.
             let r_norm = rv.norm().max(1e-300);
             let flat = (0..n).all(|j| {
                 let col = jac.column(j);
                 col.dot(&rv).abs() <= 1e-4 * col.norm() * r_norm
             });
-            convergence = if flat {
+            convergence = if flat || tiny {
                 Convergence::Converged
             } else {
                 Convergence::Stalled
@@ -154,11 +179,28 @@ pub fn levenberg_marquardt_blocks(
             break;
         }
         if convergence == Convergence::Converged {
-            // One more Jacobian at the final point for the intervals.
+            if fresh {
+                break;
+            }
+            // A tiny gain along an updated Jacobian's step may only mean the update
+            // went stale: recompute it (the intervals need it anyway) and stop only if
+            // the linear model there promises nothing either.
             jacobian(residuals, &x, &r, &offsets, touches, &all, bounds, &mut jac);
             evaluations += n;
-            break;
+            fresh = true;
+            let rv = DVector::from_iterator(m, r.iter().flatten().copied());
+            let promised = damped_step(&jac, &rv, lambda)
+                .map_or(0.0, |step| cost - (&rv + &jac * &step).norm_squared());
+            if promised <= PREDICTED_TOLERANCE * cost {
+                break;
+            }
+            convergence = Convergence::IterationLimit;
         }
+    }
+    if !fresh {
+        // The intervals need the Jacobian at the final point.
+        jacobian(residuals, &x, &r, &offsets, touches, &all, bounds, &mut jac);
+        evaluations += n;
     }
     let at_bound: Vec<bool> = x
         .iter()
@@ -227,6 +269,53 @@ fn jacobian(
         for (&b, block) in blocks_of(j).iter().zip(rj) {
             for (i, v) in block.iter().enumerate() {
                 jac[(offsets[b] + i, j)] = (v - r[b][i]) / h;
+            }
+        }
+    }
+}
+
+/// Broyden's rank-one update of `jac` after the step `delta` took the residuals from
+/// `r` to `r_new` (the secant condition `J·δ = Δr`), in parameters scaled by their
+/// finite-difference steps so that a stiffness and a millimetre count alike. Rows of
+/// blocks a parameter does not touch stay zero.
+fn broyden_update(
+    jac: &mut DMatrix<f64>,
+    delta: &DVector<f64>,
+    r: &[Vec<f64>],
+    r_new: &[Vec<f64>],
+    offsets: &[usize],
+    touches: &[Vec<usize>],
+    bounds: &[Bound],
+) {
+    let n = jac.ncols();
+    let scaled: Vec<f64> = (0..n).map(|j| delta[j] / bounds[j].step.abs()).collect();
+    let norm2: f64 = scaled.iter().map(|s| s * s).sum();
+    if norm2 <= 0.0 {
+        return;
+    }
+    let change = DVector::from_iterator(
+        jac.nrows(),
+        r_new
+            .iter()
+            .flatten()
+            .zip(r.iter().flatten())
+            .map(|(a, b)| a - b),
+    );
+    let miss = change - &*jac * delta;
+    for j in 0..n {
+        let w = scaled[j] / bounds[j].step.abs() / norm2;
+        if w == 0.0 {
+            continue;
+        }
+        let mut col = jac.column_mut(j);
+        match touches.get(j).filter(|t| !t.is_empty()) {
+            None => col.axpy(w, &miss, 1.0),
+            Some(blocks) => {
+                for &b in blocks {
+                    for i in offsets[b]..offsets[b] + r[b].len() {
+                        col[i] += w * miss[i];
+                    }
+                }
             }
         }
     }
