@@ -190,8 +190,7 @@ fn delay_and_site_heterogeneity_together_are_both_named() {
     expect(&run, &["sensor_delay", "site_heterogeneity"]);
 }
 
-/// (`sliding_friction` with it is in the ignored matrix: friction is chosen only when a
-/// slide lands in validation, and seed 6 holds its slide out to test.)
+/// (`sliding_friction` with it is in the ignored matrix.)
 #[test]
 fn a_bias_drift_is_named_and_estimated() {
     let run = calibrate(&["bias_drift"], 6);

@@ -189,7 +189,8 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
             "validation": files(&o.split.validation),
             "test": files(&o.split.test),
             "heldout": files(&heldout),
-            "rule": "whole recordings (seeded): train fits every parameter; validation chooses and gates effects; test is used for nothing but the before/after. A protocol with 3+ recordings gives one to validation and one to test, protocols with 2 give one each alternately; never a site's last training recording",
+            "rule": "whole recordings (seeded): train fits every parameter; validation chooses and gates effects; test is used for nothing but the before/after. A protocol with 3+ recordings gives one to validation and one to test, a protocol with 2 gives its held-out one to validation (every excitation where effects are chosen); never a site's last training recording",
+            "protocols_not_in_test": super::split::untested_protocols(&o.dataset, &o.split),
             "fitted_on_heldout": {
                 "breathing_phase_and_rate": "per recording (a nuisance state of each recording)",
                 "surface_without_training_recordings": o.surface_from_heldout,
@@ -358,6 +359,14 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
         o.noise,
         o.noise_source.as_str()
     );
+    let untested = super::split::untested_protocols(&o.dataset, &o.split);
+    if !untested.is_empty() {
+        let _ = writeln!(
+            s,
+            "The test holds no `{}` recording (too few to give one to each of train, validation and test): effects that only such excitation drives are judged on validation alone.\n",
+            untested.join("`, `")
+        );
+    }
     if o.verdict.unexplained {
         let _ = writeln!(
             s,

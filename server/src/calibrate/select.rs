@@ -226,7 +226,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
         let explained =
             (before * before - after * after) / (before * before - noise * noise).max(1e-12);
         if trial.gain() >= threshold && (!second_chance || explained >= MIN_EXPLAINED) {
-            try_richer(&mut trial, setup, dataset, split);
+            try_richer(&mut trial, setup, dataset, split, threshold * ESCALATION);
             calibrated = trial.model;
             calibrated_fit = trial.diagnostics;
             current = series_of(dataset, setup, &trial.predictions);
@@ -303,9 +303,10 @@ fn refit_in_simulator(
 }
 
 /// An accepted effect's richer form ([`effects::Effect::richer`]), modelled and refitted:
-/// it replaces `trial`'s model when it leaves at most [`effects::RICHER_SSE_SHARE`] of the
-/// training sum of squares and does no worse on validation.
-fn try_richer(trial: &mut Trial, setup: &Setup, dataset: &Dataset, split: &Split) {
+/// it replaces `trial`'s model when it lowers the validation RMSE by at least `needed`
+/// (relative) — the bar a further effect would have to clear, since the richer form
+/// adds parameters as one would.
+fn try_richer(trial: &mut Trial, setup: &Setup, dataset: &Dataset, split: &Split, needed: f64) {
     let Some(entry) = effects::named(trial.effect.name) else {
         return;
     };
@@ -320,11 +321,14 @@ fn try_richer(trial: &mut Trial, setup: &Setup, dataset: &Dataset, split: &Split
     let train_after = rmse_against(dataset, &split.train, &predictions, channel);
     let after = rmse_against(dataset, &split.validation, &predictions, channel);
     let share = (train_after / train_before.max(1e-12)).powi(2);
-    let kept = share <= effects::RICHER_SSE_SHARE && after <= trial.after;
+    let gain = 1.0 - after / trial.after.max(1e-12);
+    let kept = gain >= needed;
     tracing::debug!(
-        "{}'s richer form: train SSE share {share:.3}, validation {:.4} → {after:.4} N: {}",
+        "{}'s richer form: train SSE share {share:.3}, validation {:.4} → {after:.4} N ({:.1} % lower, needs {:.1} %): {}",
         trial.effect.name,
         trial.after,
+        100.0 * gain,
+        100.0 * needed,
         if kept { "kept" } else { "not kept" }
     );
     if kept {

@@ -5,11 +5,12 @@
 //! - **validation**: candidate effects are chosen and gated here;
 //! - **test**: never used to fit or to choose; the report's before/after is measured here.
 //!
-//! A protocol with three or more recordings gives one to validation and one to test; the
-//! protocols with exactly two give one each, alternately to validation and test (seeded
-//! order), so each kind of excitation is held out somewhere while every protocol keeps a
-//! training recording. (Sending a pair of slides' held-out one to validation, where
-//! friction is chosen, is written but off: see `SLIDES_TO_VALIDATION`.) A recording is never held out if it is its site's last training
+//! A protocol with three or more recordings gives one to validation and one to test; a
+//! protocol with exactly two gives its held-out one to validation, so every kind of
+//! excitation is where effects are chosen (an effect shows only under the excitation
+//! that drives it: friction in a slide, a delay in a chirp) while every protocol keeps a
+//! training recording. The test then holds what the larger protocols give, and the
+//! report names the protocols it lacks. A recording is never held out if it is its site's last training
 //! recording. Segments of one file split at a gap stay together. With nothing held out
 //! that way, a third of the recordings are (half to
 //! validation, half to test), and with two recordings one trains and one validates.
@@ -38,6 +39,21 @@ impl Split {
     }
 }
 
+/// Protocols with a validation recording and no test recording: excitations the test
+/// cannot judge (their effects are chosen on validation only), sorted.
+pub fn untested_protocols(dataset: &Dataset, split: &Split) -> Vec<String> {
+    let entries = &dataset.meta.recordings;
+    let mut out: Vec<String> = split
+        .validation
+        .iter()
+        .map(|&i| entries[i].protocol.clone())
+        .filter(|p| !split.test.iter().any(|&j| entries[j].protocol == *p))
+        .collect();
+    out.sort();
+    out.dedup();
+    out
+}
+
 /// Split `dataset`'s recordings (seeded).
 pub fn split(dataset: &Dataset, seed: u64) -> Split {
     let mut rng = Pcg64Mcg::seed_from_u64(seed);
@@ -52,8 +68,6 @@ pub fn split(dataset: &Dataset, seed: u64) -> Split {
     protocols.sort();
     protocols.dedup();
     protocols.shuffle(&mut rng);
-    let mut pairs_to_test = false;
-    let slides = |i: usize| slides_in_contact(&dataset.recordings[i]);
     for protocol in protocols {
         let mut at: Vec<usize> = (0..n)
             .filter(|&i| entries[i].protocol == protocol)
@@ -64,11 +78,8 @@ pub fn split(dataset: &Dataset, seed: u64) -> Split {
         at.shuffle(&mut rng);
         let sets: &[bool] = if at.len() >= 3 {
             &[false, true]
-        } else if SLIDES_TO_VALIDATION && at.iter().all(|&i| slides(i)) {
-            &[false]
         } else {
-            pairs_to_test = !pairs_to_test;
-            if pairs_to_test { &[false] } else { &[true] }
+            &[false]
         };
         for &to_test in sets {
             let held: Vec<usize> = validation.iter().chain(&test).copied().collect();
@@ -123,30 +134,4 @@ pub fn split(dataset: &Dataset, seed: u64) -> Split {
         validation,
         test,
     }
-}
-/// Whether a pair of slides gives its held-out one to validation. Off: on `synth`'s
-/// `sensor_delay + site_heterogeneity` (seed 6) the baseline's held-out slide then missed
-/// by 2.9 N on validation and nothing was named; friction is chosen only when a slide
-/// lands in validation by the seeded alternation.
-const SLIDES_TO_VALIDATION: bool = false;
-
-/// Sideways span in contact that makes a recording a slide \[m\].
-const SLIDE_SPAN_M: f64 = 0.01;
-/// Force that counts as contact for it \[N\].
-const SLIDE_CONTACT_N: f64 = 0.5;
-
-/// Whether the probe spans ≥ 1 cm sideways (in x or y) while pressing (a span, not a
-/// path length: encoder noise adds up along a path).
-fn slides_in_contact(rec: &crate::recordings::Recording) -> bool {
-    let mut lo = [f64::INFINITY; 2];
-    let mut hi = [f64::NEG_INFINITY; 2];
-    for (p, f) in rec.p.iter().zip(&rec.f) {
-        if f[2] > SLIDE_CONTACT_N {
-            for axis in 0..2 {
-                lo[axis] = lo[axis].min(p[axis]);
-                hi[axis] = hi[axis].max(p[axis]);
-            }
-        }
-    }
-    (0..2).any(|axis| hi[axis] - lo[axis] >= SLIDE_SPAN_M)
 }

@@ -63,8 +63,8 @@ pub fn named(name: &str) -> Option<&'static dyn Effect> {
     CATALOGUE.iter().copied().find(|e| e.name() == name)
 }
 
-/// See [`Effect::richer`]: the share of the training sum of squares a richer form may
-/// leave (the two-branch relaxation signature's rule, frozen before session 8).
+/// The share of one branch's training sum of squares two relaxation branches may leave
+/// in the signature fit (frozen before session 8).
 pub const RICHER_SSE_SHARE: f64 = 0.8;
 
 /// Parameters of a fitted signature, by catalogue key.
@@ -157,8 +157,7 @@ pub trait Effect: Sync {
 
     /// A richer form of the element to try in the simulator once this one is accepted
     /// (a second relaxation branch): `model` with it added, or `None`. Kept only when
-    /// the refit leaves at most [`RICHER_SSE_SHARE`] of the simpler form's training
-    /// sum of squares and does no worse on validation.
+    /// the refit lowers the validation RMSE by the bar a further effect would need.
     fn richer(&self, _model: &Model) -> Option<Model> {
         None
     }
