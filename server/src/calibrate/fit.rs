@@ -1,6 +1,8 @@
 //! Output-error least squares: Levenberg–Marquardt on a residual function that replays
 //! the simulator, with forward-difference Jacobians and box bounds (steps are clamped
-//! into the box).
+//! into the box). Each Jacobian costs a replay per parameter, so between them it is
+//! carried by Broyden's rank-one update after every accepted step and recomputed only
+//! after a failed step, at a suspected convergence and at the end (for the intervals).
 //!
 //! Residuals come in **blocks** (one per recording) and each parameter says which blocks
 //! it moves: a site's surface height only changes the recordings made there, so its
