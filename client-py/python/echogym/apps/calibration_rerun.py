@@ -43,10 +43,10 @@ def log_calibration(out: str | Path, recording: Any) -> int:
         "\n".join(f"{s['recording']} {s['t_start']:.1f}-{s['t_end']:.1f} s: "
                   f"{100 * s['share']:.1f} % of the residual energy" for s in spans)), static=True)
     logged = 0
-    for role, files in report["split"].items():
-        if not isinstance(files, list):
-            continue
-        for file in files:
+    # The split's recording lists; it also holds lists that are not recordings
+    # (`protocols_not_in_test`), so the roles are named.
+    for role in ("train", "validation", "test", "heldout"):
+        for file in report["split"].get(role, []):
             replay = load_replay(out, str(file))
             if not replay:
                 continue
