@@ -6,10 +6,13 @@ collectors spawn worker processes that each build the env, and the parent often 
 a throw-away one; only envs that are actually stepped attach.
 
 By default observations are copied out of shared memory into fresh tensors (torchrl's
-``rollout`` keeps references to earlier steps). With ``copy_observations=False`` they
-are zero-copy ``torch.from_numpy`` views onto the server's sample, valid until the next
-step/reset of the env: safe with collectors, which copy every step into their own
-buffers, and the fastest path.
+``rollout`` and its collectors keep references to earlier steps). With
+``copy_observations=False`` they are zero-copy ``torch.from_numpy`` views onto the
+server's sample, valid until the next step/reset of the env: for code that consumes each
+step before the next one. torchrl 0.14's collectors do not: they keep every step's
+tensordict and stack the batch at its end, so under a collector a view shows the last
+step's values (:func:`echogym.train.envs.build_env` concatenates the observation into a
+fresh tensor, which is safe and is what training uses).
 """
 
 from __future__ import annotations
@@ -28,10 +31,33 @@ from torchrl.envs import EnvBase
 from echogym._native import NativeLease, resolve_spec
 from echogym.client import connect
 
-#: Sample slots whose tensordicts are kept (the native view cache keeps as many).
+#: Sample slots whose tensors are kept (the native view cache keeps as many).
 _SLOT_CACHE = 16
 
 _TORCH_DTYPES = {"float32": torch.float32, "uint8": torch.uint8, "int32": torch.int32}
+_CPU = torch.device("cpu")
+
+
+class _Slot:
+    """Tensors over one sample slot's views, built the first time the slot comes round.
+
+    ``fields`` are the observation fields in spec order, ``reward``, ``terminated`` and
+    ``truncated`` are ``[num_envs, 1]`` and ``info`` is ``[num_envs, info_size]``; all
+    read-only views of the sample. ``extra`` is for subclasses' per-slot data.
+    """
+
+    __slots__ = ("views", "fields", "reward", "terminated", "truncated", "info", "extra")
+
+    def __init__(self, views: tuple[Any, ...], num_envs: int) -> None:
+        fields, reward, terminated, truncated, info, _, _ = views
+        # Keep the tuple itself so its identity cannot be reused by another object.
+        self.views = views
+        self.fields = [_tensor(array) for array in fields]
+        self.reward = _tensor(reward).view(num_envs, 1)
+        self.terminated = _tensor(terminated).view(num_envs, 1)
+        self.truncated = _tensor(truncated).view(num_envs, 1)
+        self.info = _tensor(info)
+        self.extra: Any = None
 
 
 def _tensor(array: np.ndarray) -> torch.Tensor:
@@ -88,8 +114,11 @@ class EchoEnv(EnvBase):
         self._info_index = [declared.index(k) for k in keys]
         self._lease: NativeLease | None = None
         self._seeds: list[int | None] | None = None
-        self._slots: list[tuple[tuple[Any, ...], TensorDictBase]] = []
-        self._small_keys = [*self.info_keys, "reward", "terminated", "truncated", "done"]
+        # Info columns as a row index of the transposed info block: one `index_select`
+        # gives every requested key as a contiguous row.
+        self._info_rows = torch.tensor(self._info_index, dtype=torch.long)
+        self._obs_names = [field["name"] for field in self.echo_spec["observation"]]
+        self._slots: list[_Slot] = []
         self._make_specs()
 
     def _make_specs(self) -> None:
@@ -138,54 +167,56 @@ class EchoEnv(EnvBase):
                 )
         return self._lease
 
-    def _views(self, views: tuple[Any, ...]) -> TensorDictBase:
-        """The tensordict over one sample slot's views, built once per slot.
+    def _slot(self, views: tuple[Any, ...]) -> _Slot:
+        """The tensors over one sample slot's views, built once per slot.
 
         The native lease returns the same view tuple for a slot every time it comes round
-        (the publisher cycles a few fixed slots), so the tensors, the ``done`` buffer and
-        the tensordict (validated once, at construction) are reused: a step allocates no
-        tensor and validates nothing. ``done`` is a per-slot buffer written in place.
+        (the publisher cycles a few fixed slots), so the tensors over it are reused: a
+        step wraps no array and validates nothing.
         """
-        for cached_views, cached in self._slots:
-            if cached_views is views:
-                return cached
-        fields, reward, terminated, truncated, info, _, _ = views
-        n = self.num_envs
-        out: dict[str, torch.Tensor] = {}
-        for field, array in zip(self.echo_spec["observation"], fields):
-            out[field["name"]] = _tensor(array)
-        info_t = _tensor(info)
-        for key, column in zip(self.info_keys, self._info_index):
-            out[key] = info_t[:, column]
-        term = _tensor(terminated).view(n, 1)
-        trunc = _tensor(truncated).view(n, 1)
-        out["reward"] = _tensor(reward).view(n, 1)
-        out["terminated"] = term
-        out["truncated"] = trunc
-        out["done"] = torch.empty((n, 1), dtype=torch.bool)
-        td = TensorDict(out, batch_size=self.batch_size, device="cpu")
+        for slot in self._slots:
+            if slot.views is views:
+                return slot
+        slot = _Slot(views, self.num_envs)
         if len(self._slots) >= _SLOT_CACHE:
             self._slots.pop(0)
-        # Keep the tuple itself so its identity cannot be reused by another object.
-        self._slots.append((views, td))
-        return td
+        self._slots.append(slot)
+        return slot
 
-    def _deliver(self, views: tuple[Any, ...]) -> TensorDictBase:
-        td = self._views(views)
-        done = td.get("done")
-        torch.logical_or(td.get("terminated"), td.get("truncated"), out=done)
+    def _small_entries(self, slot: _Slot, out: dict[str, Any], reward: bool = True) -> None:
+        """Fresh copies of the info keys, the reward and the done flags into ``out``.
+
+        Fresh because collectors write the root tensordict's flags in place and keep every
+        step's entries, and the sample's memory is read-only and reused.
+        """
+        if self.info_keys:
+            rows = slot.info.t().index_select(0, self._info_rows).unbind(0)
+            for key, row in zip(self.info_keys, rows):
+                out[key] = row
+        if reward:
+            out["reward"] = slot.reward.clone()
+        terminated = slot.terminated.clone()
+        truncated = slot.truncated.clone()
+        out["terminated"] = terminated
+        out["truncated"] = truncated
+        out["done"] = terminated | truncated
+
+    def _finish(self, out: dict[str, Any]) -> TensorDictBase:
+        """A tensordict over ``out`` (every entry ``[num_envs, ...]`` on CPU by
+        construction, so not validated again), moved to the env's device."""
+        td = TensorDict._new_unsafe(out, batch_size=self.batch_size, device=_CPU)
         if self.device.type != "cpu":
             return td.to(self.device)
-        if self.copy_observations:
-            return td.clone()
-        # A new tensordict over the same observation views (torchrl's transforms add and
-        # delete keys of what `_step` returns, which must not reach the cached one). The
-        # reward, flags and info are fresh: collectors write into the root tensordict's
-        # flags in place, and the sample's memory is read-only.
-        out = td.copy()
-        for key in self._small_keys:
-            out.set(key, out.get(key).clone())
-        return out
+        return td
+
+    def _deliver(self, views: tuple[Any, ...], reward: bool = True) -> TensorDictBase:
+        slot = self._slot(views)
+        copy = self.copy_observations
+        out: dict[str, Any] = {}
+        for name, tensor in zip(self._obs_names, slot.fields):
+            out[name] = tensor.clone() if copy else tensor
+        self._small_entries(slot, out, reward)
+        return self._finish(out)
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs: Any) -> TensorDictBase:
         mask = None
@@ -194,7 +225,7 @@ class EchoEnv(EnvBase):
         seeds, self._seeds = self._seeds, None
         # A reset's flags are zero in the sample, so `done` comes out false; a reset
         # carries no reward.
-        return self._deliver(self.lease.reset(mask, seeds)).exclude("reward")
+        return self._deliver(self.lease.reset(mask, seeds), reward=False)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         action = tensordict.get("action").detach()
