@@ -91,3 +91,70 @@ def test_zero_copy_mode_shares_memory_with_the_sample(server):
     assert first[:, 0].tolist() == [0.0, 0.0], "copied observations do not change"
     env.close()
     copied.close()
+
+
+def _same(a, b, label):
+    assert set(a.keys(True, True)) == set(b.keys(True, True)), label
+    for key in a.keys(True, True):
+        x, y = a[key], b[key]
+        assert x.dtype == y.dtype and x.shape == y.shape, (label, key)
+        assert torch.equal(x, y), (label, key)
+
+
+def test_worker_env_equals_the_transformed_env_it_replaces(server):
+    # WorkerEnv (echogym.train.envs) computes in one pass what EchoEnv behind
+    # CatTensors + RewardSum + StepCounter computed: same specs, same step data, same
+    # next roots (through its direct step_and_maybe_reset and through torchrl's
+    # generic path), episode ends and partial resets included.
+    from torchrl.envs import CatTensors, Compose, RewardSum, StepCounter, TransformedEnv
+
+    from echogym.train.envs import WorkerEnv, default_obs_keys, info_keys_for
+
+    env_id, config = "echogym/PushCube-v0", {"horizon": 7}
+    keys = default_obs_keys(env_id, config)
+    info = info_keys_for(env_id, config)
+
+    def reference():
+        base = EchoEnv(env_id, 3, copy_observations=False, info_keys=info, **config)
+        transforms = Compose(CatTensors(list(keys), "observation", del_keys=True),
+                             RewardSum(), StepCounter())
+        return TransformedEnv(base, transforms)
+
+    def worker(fast=True):
+        env = WorkerEnv(env_id, 3, keys, info_keys=info, **config)
+        env.fast_step = fast
+        return env
+
+    envs = [reference(), worker(), worker(fast=False)]
+    for name in ("full_observation_spec", "full_state_spec", "full_done_spec",
+                 "full_reward_spec", "full_action_spec"):
+        assert getattr(envs[1], name) == getattr(envs[0], name), name
+    check_env_specs(envs[1])
+
+    actions = torch.rand(20, 3, 6, generator=torch.Generator().manual_seed(0)) * 0.6 - 0.3
+    runs = []
+    for env in envs:
+        env.set_seed(5)
+        td = env.reset()
+        # Root entries that step_mdp carries over (a policy output, collector data).
+        td.set("collector", TensorDict({"traj_ids": torch.arange(3)}, [3]))
+        steps, roots = [], []
+        for t in range(20):  # three episode ends (horizon 7)
+            td.set("action", actions[t])
+            td.set("loc", 2 * actions[t])
+            data, td = env.step_and_maybe_reset(td)
+            steps.append(data.clone())
+            roots.append(td.clone())
+        assert int(steps[-1]["next", "step_count"][0]) == 6
+        # A partial reset through torchrl's public reset, as collectors call it.
+        td.set("_reset", torch.tensor([[True], [False], [True]]))
+        roots.append(env.reset(td).clone())
+        runs.append((torch.stack(steps), roots))
+        env.close()
+    for i in (1, 2):
+        _same(runs[0][0], runs[i][0], f"steps {i}")
+        for t, (a, b) in enumerate(zip(runs[0][1], runs[i][1])):
+            _same(a, b, f"root {i} {t}")
+    after_reset = runs[1][1][-1]
+    assert after_reset["step_count"][:, 0].tolist() == [0, 6, 0]
+    assert after_reset["episode_reward"][1] != 0 and after_reset["episode_reward"][0] == 0
