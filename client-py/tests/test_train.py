@@ -137,3 +137,37 @@ def test_torchrl_env_returns_requested_info_keys(server):
     env.close()
     with pytest.raises(ValueError, match="no info keys"):
         EchoEnv("echogym/PushCube-v0", num_envs=1, info_keys=["nope"])
+
+
+def test_gaussian_sampler_is_the_actors_distribution():
+    # The collection path (GaussianSampler) against the PPO loss's ProbabilisticActor:
+    # the same loc and scale bit for bit, the log-probability of its action under the
+    # actor's distribution to float rounding, the mean when deterministic.
+    from tensordict import TensorDict
+    from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+    from echogym.train.config import TrainConfig
+    from echogym.train.models import GaussianSampler
+    from echogym.train.networks import build_networks
+
+    actor, _ = build_networks(TrainConfig(env_id="echogym/PushCube-v0"))
+    net = actor.module[0].module
+    with torch.no_grad():
+        net.log_std.copy_(torch.linspace(-1.0, 0.5, net.log_std.numel()))
+        net.norm.mean.normal_()
+        net.norm.var.uniform_(0.5, 2.0)
+    sampler = GaussianSampler(actor)
+    obs = torch.randn(16, net.norm.mean.numel()) * 3
+    with torch.no_grad():
+        dist = actor.get_dist(TensorDict({"observation": obs}, [16]))
+        ref = actor.module[0](TensorDict({"observation": obs}, [16]))
+        for mode in (ExplorationType.RANDOM, ExplorationType.DETERMINISTIC):
+            with set_exploration_type(mode):
+                out = sampler(TensorDict({"observation": obs}, [16]))
+            assert torch.equal(out["loc"], ref["loc"]) and torch.equal(out["scale"], ref["scale"])
+            torch.testing.assert_close(out["action_log_prob"], dist.log_prob(out["action"]),
+                                       rtol=0, atol=1e-5)
+            if mode is ExplorationType.DETERMINISTIC:
+                assert torch.equal(out["action"], out["loc"])
+            else:
+                assert not torch.equal(out["action"], out["loc"])

@@ -14,7 +14,7 @@ import math
 from collections.abc import Sequence
 
 import torch
-from tensordict import TensorDictBase
+from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictModule, TensorDictModuleBase
 from torch import nn
 from torchrl.data import Bounded
@@ -89,6 +89,14 @@ class GaussianPolicyNet(nn.Module):
         scale = self.log_std.clamp(-5.0, 2.0).exp().expand_as(loc)
         return loc, scale
 
+    def loc(self, observation: torch.Tensor) -> torch.Tensor:
+        """``forward``'s ``loc``, the same operations without the per-module call
+        overhead (module hooks are not run; echogym registers none)."""
+        x = self.norm.forward(observation)
+        for layer in self.body:
+            x = layer.forward(x)
+        return x
+
 
 class ValueNet(nn.Module):
     """Normalised observation → state value."""
@@ -128,14 +136,17 @@ def make_actor(
 class GaussianSampler(TensorDictModuleBase):
     """The actor's collection path in one module: ``"observation"`` → ``"loc"``,
     ``"scale"``, ``"action"``, ``"action_log_prob"``, as :func:`make_actor`'s
-    ``ProbabilisticActor`` computes them, without its per-call tensordict plumbing (the
-    collector's policy call cost ≈ 4× this; docs/results/performance-client.md).
+    ``ProbabilisticActor`` computes them, without its per-call tensordict plumbing
+    (docs/results/performance-client.md: the ``ProbabilisticActor`` call costs ≈ 4× this).
 
     It holds the actor's own ``module`` under the same attribute name, so its parameters
     *are* the actor's and ``TensorDict.from_module(actor)`` weights load into it
     unchanged (collectors' weight sync). Random interaction samples the Gaussian
     (``loc + scale · ε``: the actor's distribution, not its exact draws for a seed);
-    deterministic, mode and mean give ``loc``.
+    deterministic, mode and mean give ``loc``. ``loc`` is computed by the actor's own
+    layers with the same operations (bit-identical); the log-probability is
+    ``log N(action; loc, scale)`` summed over the action's elements, computed from ``ε``
+    (``-ε²/2 - log scale - log √2π``; equal to ``IndependentNormal``'s to float rounding).
     """
 
     in_keys = ["observation"]
@@ -148,18 +159,32 @@ class GaussianSampler(TensorDictModuleBase):
             raise TypeError("GaussianSampler needs an actor made by make_actor")
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
-        loc, scale = self.module[0].module(tensordict.get("observation"))
+        # Parameters are looked up on every call: weight sync may replace them.
+        net = self.module[0].module
+        loc = net.loc(tensordict.get("observation"))
+        log_std = net.log_std.clamp(-5.0, 2.0)
+        scale = log_std.exp().expand_as(loc)
+        # Σ log scale + n·log √2π: the log-density's constant part.
+        constant = log_std.sum() + loc.shape[-1] * _HALF_LOG_2PI
         if exploration_type() in (None, ExplorationType.RANDOM):
-            action = loc + scale * torch.randn_like(loc)
+            noise = torch.randn_like(loc)
+            action = loc + scale * noise
+            log_prob = noise.square().sum(-1).mul_(-0.5).sub_(constant)
         else:
             action = loc
-        # log N(action; loc, scale), summed over the action's elements (IndependentNormal).
-        z = (action - loc) / scale
-        log_prob = (-0.5 * z.square() - scale.log() - _HALF_LOG_2PI).sum(-1)
-        tensordict.set("loc", loc)
-        tensordict.set("scale", scale)
-        tensordict.set("action", action)
-        tensordict.set("action_log_prob", log_prob)
+            log_prob = (-constant).expand(loc.shape[:-1]).clone()
+        if type(tensordict) is TensorDict:
+            # Entries of the right batch shape by construction: set without validation
+            # (what torchrl does for entries it builds; tensordict is pinned to 0.14.x).
+            for key, value in (("loc", loc), ("scale", scale), ("action", action),
+                               ("action_log_prob", log_prob)):
+                tensordict._set_str(key, value, validated=True, inplace=False,
+                                    non_blocking=False)
+        else:
+            tensordict.set("loc", loc)
+            tensordict.set("scale", scale)
+            tensordict.set("action", action)
+            tensordict.set("action_log_prob", log_prob)
         return tensordict
 
 
