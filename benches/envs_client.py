@@ -1,9 +1,10 @@
 """The client side of `benches/run envs`: does the training stack keep up with the server?
 
 - `collector_ratio`: torchrl's `MultiSyncCollector` (2 worker processes, the default PPO
-  actor through its collection path) against the raw vector env over the same envs, on
-  one 2-thread server (`echogym.train.throughput`): UltrasoundScan-v0 at 500 Hz, episodes
-  ending only at the horizon, 16 and 64 envs per worker. The headline is the worse ratio.
+  actor through its collection path) against the raw vector env over the same envs
+  stepped with the actor's initial action distribution, on one 2-thread server
+  (`echogym.train.throughput`): UltrasoundScan-v0 at 500 Hz, episodes ending only at the
+  horizon, 16 and 64 envs per worker. The headline is the worse ratio.
 - `async_gain`: envpool-style asynchronous batches against the synchronous vector env,
   with heterogeneous step costs and a policy to overlap: UltrasoundScan-v0 at 500 Hz with
   the seed's early termination (an episode ends every few steps under random actions, and
@@ -114,7 +115,8 @@ def table_lines(collector: dict[str, Any] | None, gain: dict[str, Any] | None) -
     """Markdown lines for the suite's table."""
     lines: list[str] = []
     if collector is not None:
-        lines += ["", "| torchrl collector vs raw (2 workers, 2-thread server, scan 500 Hz) "
+        lines += ["", "| torchrl collector vs raw (2 workers, 2-thread server, scan 500 Hz, "
+                  "raw with the actor's N(0, 1) actions) "
                   "| raw env-steps/s | collector env-steps/s | ratio | runs (ratio) |",
                   "|---|---:|---:|---:|---|"]
         for per_worker, r in collector["by_envs_per_worker"].items():

@@ -2,21 +2,27 @@
 against one server, env-steps/s of
 
 - ``raw``: one process stepping all ``workers × envs_per_worker`` envs through the
-  gymnasium vector env (zero-copy, random actions in ±0.3, same-step autoreset: the
-  envs benchmark's method), and
+  gymnasium vector env (zero-copy, same-step autoreset: the envs benchmark's method),
+  with actions drawn from the distribution the collector's actor samples at the start of
+  training (``N(0, exp(log_std_init))`` per element, clipped to the bounds by the server;
+  ``--raw-actions uniform`` gives the envs benchmark's ±0.3 instead), and
 - ``collector``: torchrl's ``MultiSyncCollector`` with ``workers`` worker processes of
   ``envs_per_worker`` envs each, the default PPO actor choosing the actions through its
   collection path (:class:`echogym.train.models.GaussianSampler`, as the trainer collects;
-  inference, transforms and the collector's copies included; no PPO update),
+  inference, the env's Python side and the collector's copies included; no PPO update),
 
 and prints their ratio. Both use the same server (``--threads`` worker threads) and the
-same number of envs, so the ratio is what the collector costs on top of the envs.
+same number of envs, so the ratio is what the collector costs on top of the envs. The
+actions matter: the scan's physics costs ≈ 15–30 % more server CPU per step under the
+actor's ``N(0, 1)`` actions than under ±0.3 (docs/results/benchmarks.md, "Training"), so
+a raw run with other actions than the collector's measures a different workload.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -35,12 +41,15 @@ from echogym.train.timing import timed_collection
 
 
 def raw_rate(env_id: str, num_envs: int, config: dict[str, Any], server: str,
-             seconds: float) -> float:
-    """Env-steps/s of one vector env of ``num_envs`` envs, random actions in ±0.3."""
+             seconds: float, action_std: float | None = None) -> float:
+    """Env-steps/s of one vector env of ``num_envs`` envs: actions ``N(0, action_std)``
+    (the default actor's initial distribution), or uniform in ±0.3 when ``None``."""
     env = EchoVectorEnv(env_id, num_envs, server=server, **config)
     rng = np.random.default_rng(0)
+    shape = (num_envs, env.single_action_space.shape[0])
     actions = [
-        rng.uniform(-0.3, 0.3, size=(num_envs, env.single_action_space.shape[0])).astype(np.float32)
+        (rng.uniform(-0.3, 0.3, size=shape) if action_std is None
+         else rng.normal(0.0, action_std, size=shape)).astype(np.float32)
         for _ in range(16)
     ]
     env.reset(seed=0)
@@ -76,12 +85,17 @@ def collector_rate(env_id: str, workers: int, envs_per_worker: int, config: dict
 
 def measure(env_id: str, workers: int, envs_per_worker: int, config: dict[str, Any],
             server: str, seconds: float, batches: int, repeats: int,
-            report: bool = True) -> dict[str, Any]:
-    """``repeats`` × (raw, collector) against ``server``: every run and the medians."""
+            report: bool = True, raw_actions: str = "policy") -> dict[str, Any]:
+    """``repeats`` × (raw, collector) against ``server``: every run and the medians.
+    ``raw_actions``: ``"policy"`` (the actor's initial distribution) or ``"uniform"``."""
     total = workers * envs_per_worker
+    if raw_actions not in ("policy", "uniform"):
+        raise ValueError(f"raw_actions must be 'policy' or 'uniform', not {raw_actions!r}")
+    action_std = (math.exp(TrainConfig(env_id=env_id, env_config=config).log_std_init)
+                  if raw_actions == "policy" else None)
     runs = []
     for repeat in range(repeats):
-        raw = raw_rate(env_id, total, config, server, seconds)
+        raw = raw_rate(env_id, total, config, server, seconds, action_std)
         coll = collector_rate(env_id, workers, envs_per_worker, config, server, batches)
         row = {"repeat": repeat, "raw_env_steps_per_s": round(raw, 1),
                "collector_env_steps_per_s": round(coll, 1), "ratio": round(coll / raw, 3)}
@@ -93,7 +107,7 @@ def measure(env_id: str, workers: int, envs_per_worker: int, config: dict[str, A
         for key in ("raw_env_steps_per_s", "collector_env_steps_per_s", "ratio")
     }
     return {"env_id": env_id, "workers": workers, "envs_per_worker": envs_per_worker,
-            "runs": runs, "median": median}
+            "raw_actions": raw_actions, "runs": runs, "median": median}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -109,6 +123,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--server", default=None,
                         help="a running server (default: a private one with --threads)")
     parser.add_argument("--threads", type=int, default=0, help="private server's threads")
+    parser.add_argument("--raw-actions", choices=("policy", "uniform"), default="policy",
+                        help="raw run's actions: the actor's initial N(0, exp(log_std_init)) "
+                             "(default) or the envs benchmark's uniform ±0.3")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
 
@@ -134,7 +151,8 @@ def main(argv: list[str] | None = None) -> int:
                 time.sleep(0.05)
     try:
         result = measure(args.env_id, args.workers, args.envs_per_worker, args.env_config,
-                         server, args.seconds, args.batches, args.repeats)
+                         server, args.seconds, args.batches, args.repeats,
+                         raw_actions=args.raw_actions)
         del result["runs"]
         print(json.dumps(result), flush=True)
     finally:
