@@ -65,7 +65,9 @@ class WorkerEnv(EchoEnv):
     transforms' per-step tensordict plumbing: each step concatenates the fields straight
     from the shared-memory views (sorted by name, as ``CatTensors`` orders them) and builds
     one tensordict. ``"observation"`` is always a fresh tensor; the other observation
-    fields (e.g. images) are copied too unless ``copy_observations=False``.
+    fields (e.g. images) are copied too unless ``copy_observations=False`` (then they are
+    views of the sample, as ``EchoEnv`` returns them, which a collector's batch does not
+    keep: see :mod:`echogym.torchrl`; training reads only ``"observation"``).
 
     :meth:`step_and_maybe_reset` (what collectors call every step) takes a direct path
     for the plain case: ``EnvBase.step``'s generic checks are skipped (this env's output
