@@ -110,6 +110,10 @@ pub struct LeaseStatus {
     /// Env steps and resets that failed inside the env (flagged `env_error`).
     #[serde(default)]
     pub env_errors: u64,
+    /// Exchanges that ran on the medium lane (a medium exchange while a big one was on
+    /// the worker pool).
+    #[serde(default)]
+    pub lane_exchanges: u64,
     /// Seconds since the last exchange (or since attach, before the first).
     #[serde(default)]
     pub idle_s: f64,

@@ -122,6 +122,10 @@ struct ServeArgs {
     /// Nice value of the worker threads (0–19).
     #[arg(long)]
     worker_nice: Option<i32>,
+    /// Microseconds: exchanges above the inline budget and at most this run on the
+    /// medium lane while a bigger one is on the pool (0 = no lane).
+    #[arg(long)]
+    lane_budget_us: Option<u64>,
     /// Microseconds to busy-poll before blocking.
     #[arg(long)]
     spin_us: Option<u64>,
@@ -184,6 +188,7 @@ impl ServeArgs {
         set(&mut config.name, &self.name);
         set(&mut config.threads, &self.threads);
         set(&mut config.worker_nice, &self.worker_nice);
+        set(&mut config.lane_budget_us, &self.lane_budget_us);
         set(&mut config.spin_us, &self.spin_us);
         set(&mut config.housekeeping_ms, &self.housekeeping_ms);
         set(&mut config.max_leases, &self.max_leases);

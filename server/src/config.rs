@@ -23,6 +23,13 @@ pub struct ServeConfig {
     /// small lease's step (measured: docs/results/benchmarks.md, "Head of line"); with
     /// idle cores it changes nothing.
     pub worker_nice: i32,
+    /// Microseconds: an exchange measured to cost more than the dispatcher's inline
+    /// budget (100 µs) but at most this on one thread is "medium"; while a bigger
+    /// exchange is on the worker pool, medium ones run on the medium lane, a thread of
+    /// their own, instead of queueing behind it. 0 turns the lane off (every exchange
+    /// above the inline budget queues on the pool). Default 2000 (2 ms: the longest
+    /// one medium exchange holds back another on the lane).
+    pub lane_budget_us: u64,
     /// Microseconds to busy-poll for work before blocking on an event. Default 200:
     /// long enough to catch a client's next step without a ≈ 50 µs wake-up, short
     /// enough that an idle server costs nothing.
@@ -67,6 +74,7 @@ impl Default for ServeConfig {
             name: "default".to_owned(),
             threads: 0,
             worker_nice: 5,
+            lane_budget_us: 2000,
             spin_us: 200,
             housekeeping_ms: 100,
             max_leases: 256,
@@ -167,6 +175,9 @@ impl ServeConfig {
         if !(0..=19).contains(&self.worker_nice) {
             return Err(invalid("worker_nice", "must be 0 to 19"));
         }
+        if self.lane_budget_us > 1_000_000 {
+            return Err(invalid("lane_budget_us", "must be at most 1,000,000 (1 s)"));
+        }
         echogym_protocol::ServiceNames::new(&self.name).map_err(|e| ConfigError::Invalid {
             key: "name",
             message: e.to_string(),
@@ -192,6 +203,7 @@ impl ServeConfig {
             location: self.ipc.clone(),
             threads: self.threads,
             worker_nice: self.worker_nice,
+            lane_budget: Duration::from_micros(self.lane_budget_us),
             spin: Duration::from_micros(self.spin_us),
             housekeeping: Duration::from_millis(self.housekeeping_ms),
             max_leases: self.max_leases,

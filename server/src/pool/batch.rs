@@ -20,7 +20,7 @@ use echogym_protocol::{
 };
 
 use super::panic::panic_message;
-use super::workers::WorkerPool;
+use super::workers::{ThreadUsage, WorkerPool};
 use crate::envs::{Env, EnvBuildError, EnvFactory, EnvOutput, PHYSICS_ERROR_KEY, Transition};
 
 /// Why an exchange was refused. Nothing was stepped. (A failing env does not fail
@@ -90,6 +90,20 @@ pub struct Exchanged {
     pub physics_errors: u64,
     /// Envs whose step or reset failed (panicked) and were flagged.
     pub env_errors: u64,
+}
+
+/// Where an exchange runs, which decides how its cost is measured
+/// ([`EnvBatch::serial_cost_ns`]).
+#[derive(Clone, Copy)]
+pub enum Runner<'a> {
+    /// On the calling thread, timed by the wall clock (the dispatcher's cheap inline
+    /// exchanges: a clock read costs 25 ns, a CPU-time read ≈ 300 ns).
+    Inline,
+    /// On the calling thread, timed by [`ThreadUsage`] (the medium lane).
+    Serial,
+    /// On the worker pool, the envs in parallel when that pays, timed by
+    /// [`ThreadUsage`] on every thread.
+    Pool(&'a WorkerPool),
 }
 
 /// The typed blocks of an action sample: actions, reset flags, seeds.
@@ -230,10 +244,10 @@ impl EnvBatch {
     /// Run one exchange: read `action` (the action sample payload), write `obs` (the
     /// observation sample payload, zero-filled). Returns the env steps taken and how many
     /// were truncated for a physics error or failed (flagged, the others' results kept).
-    /// With `pool`, the envs step in parallel when that pays; without, on this thread.
+    /// `runner` says where the envs step and how the exchange's cost is measured.
     pub fn exchange(
         &mut self,
-        pool: Option<&WorkerPool>,
+        runner: Runner<'_>,
         op: Op,
         action: &[u8],
         obs: &mut [u8],
@@ -259,24 +273,38 @@ impl EnvBatch {
                 contain_failure(slot, job, fields, op, mode, env_error_info);
             }
         };
-        let threads = match pool {
-            Some(pool) => pool.for_each(&mut self.slots, &mut jobs, cost, work),
-            None => {
-                self.slots
-                    .iter_mut()
-                    .zip(jobs.iter_mut())
-                    .for_each(|(slot, job)| work(slot, job));
-                1
+        let serial_loop = |slots: &mut [Slot], jobs: &mut [Job<'_>]| {
+            slots
+                .iter_mut()
+                .zip(jobs.iter_mut())
+                .for_each(|(slot, job)| work(slot, job));
+        };
+        // What the exchange costs on one thread: `None` for the wall time below.
+        let measured = match runner {
+            Runner::Inline => {
+                serial_loop(&mut self.slots, &mut jobs);
+                None
             }
+            Runner::Serial => {
+                let usage = ThreadUsage::now();
+                serial_loop(&mut self.slots, &mut jobs);
+                Some(usage.cost_ns())
+            }
+            Runner::Pool(pool) => Some(
+                pool.for_each(&mut self.slots, &mut jobs, cost, work)
+                    .cost_ns,
+            ),
         };
         let elapsed = started.elapsed();
         let physics_errors = jobs.iter().filter(|j| j.physics_error).count() as u64;
         let env_errors = jobs.iter().filter(|j| j.env_error).count() as u64;
         drop(jobs);
-        // On one thread it would take about this long (an upper bound when the threads
-        // were unevenly loaded: the safe side for the dispatcher's inline choice).
+        // On one thread it would take about this long: the wall time of an inline
+        // exchange (cheap; a preempted dispatcher only errs towards the pool), else the
+        // threads' CPU time (or wall time where a thread blocked), which the machine's
+        // load does not inflate (see `ThreadUsage`).
         let serial = &mut self.serial_cost_ns[op_index(op)];
-        let busy = elapsed.as_nanos() as f64 * threads as f64;
+        let busy = measured.unwrap_or(elapsed.as_nanos() as u64) as f64;
         *serial = if *serial == 0.0 {
             busy.max(1.0)
         } else {

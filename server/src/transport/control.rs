@@ -95,6 +95,7 @@ impl Dispatcher {
                     env_steps: l.env_steps,
                     physics_errors: l.physics_errors,
                     env_errors: l.env_errors,
+                    lane_exchanges: l.lane_exchanges,
                     idle_s: l.last_activity.elapsed().as_secs_f64(),
                     client_pid: pids.get(&l.client_node).copied(),
                 })

@@ -17,7 +17,10 @@
 //! the dispatcher thread. Any other is handed to the worker pool with its batch and
 //! samples ([`Handoff`]): the worker returns the batch through a channel, then
 //! publishes; the dispatcher keeps polling meanwhile, so a big batch delays no other
-//! lease's exchange (ARCHITECTURE.md, "Exchanges off the dispatcher").
+//! lease's exchange (ARCHITECTURE.md, "Exchanges off the dispatcher"). While a big
+//! exchange (above the lane budget, or of unknown cost) is on the pool, a medium one
+//! (above the inline budget, at most the lane budget) runs on the medium lane
+//! ([`crate::pool::Lane`]) instead of queueing behind it.
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::Arc;
@@ -43,7 +46,7 @@ use super::pending::PendingAttach;
 use super::reply::{error, parse_control, respond};
 use super::shutdown::Shutdown;
 use crate::envs::EnvRegistry;
-use crate::pool::{EnvBatch, ExchangeError, Exchanged, WorkerPool};
+use crate::pool::{EnvBatch, ExchangeError, Exchanged, Lane, Runner, WorkerPool};
 /// How often the dispatcher looks for finished builds while it would otherwise block.
 const BUILD_POLL: Duration = Duration::from_millis(1);
 
@@ -67,8 +70,11 @@ pub struct DispatcherOptions {
     pub location: IpcLocation,
     /// Worker threads (0 = one per core).
     pub threads: usize,
-    /// Nice value of the worker threads.
+    /// Nice value of the worker threads (and of the medium lane).
     pub worker_nice: i32,
+    /// Exchanges above the inline budget and at most this (serial cost) run on the
+    /// medium lane while a bigger one is on the pool; zero: no lane.
+    pub lane_budget: Duration,
     /// Busy-poll time before blocking.
     pub spin: Duration,
     /// Housekeeping period.
@@ -98,6 +104,11 @@ pub struct Dispatcher {
     pub(super) pending: Vec<PendingAttach>,
     pub(super) next_ticket: u64,
     pub(super) pool: Arc<WorkerPool>,
+    /// The medium lane (`None` when `lane_budget` is zero).
+    lane: Option<Lane>,
+    /// Big exchanges (above the lane budget or of unknown cost) on the pool, running or
+    /// queued: while there is one, medium exchanges go to the lane.
+    big_in_flight: usize,
     pub(super) leases: Vec<Lease>,
     /// Leases detached or reclaimed while their exchange ran on the pool: closed when
     /// the batch comes back.
@@ -125,9 +136,21 @@ pub struct Dispatcher {
     pub(super) node: Node<Ipc>,
 }
 
-/// An exchange handed to the pool: the batch and both samples travel with it.
+/// Where an exchange off the dispatcher runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Route {
+    /// On the pool, at most the lane budget (no big exchange was on the pool).
+    Pool,
+    /// On the pool, above the lane budget or of unknown cost.
+    Big,
+    /// On the medium lane, serially.
+    Lane,
+}
+
+/// An exchange handed to the pool or the lane: the batch and both samples travel with it.
 struct Handoff {
     lease: u64,
+    route: Route,
     op: Op,
     batch: EnvBatch,
     action: Sample<Ipc, [u8], ActionHeader>,
@@ -138,27 +161,32 @@ struct Handoff {
 /// An exchange that ran on the pool, its batch back for the dispatcher.
 struct Completed {
     lease: u64,
+    route: Route,
     batch: EnvBatch,
     result: Result<Exchanged, ExchangeError>,
 }
 
 impl Handoff {
-    /// Run on a worker: exchange, give the batch back, then publish (in that order,
-    /// so the batch is back before the client can send its next action).
-    fn run(self, pool: &WorkerPool, done: &Sender<Completed>) {
+    /// Run on a worker (its envs in parallel on `pool`) or on the lane (`None`: on
+    /// this thread): exchange, give the batch back, then publish (in that order, so the
+    /// batch is back before the client can send its next action).
+    fn run(self, pool: Option<&WorkerPool>, done: &Sender<Completed>) {
         let Self {
             lease,
+            route,
             op,
             mut batch,
             action,
             mut obs,
             notifier,
         } = self;
-        let result = run_exchange(&mut batch, Some(pool), op, &action, &mut obs);
+        let runner = pool.map_or(Runner::Serial, Runner::Pool);
+        let result = run_exchange(&mut batch, runner, op, &action, &mut obs);
         drop(action);
         if done
             .send(Completed {
                 lease,
+                route,
                 batch,
                 result,
             })
@@ -173,19 +201,19 @@ impl Handoff {
     }
 }
 
-/// Run one exchange of `batch` (on `pool`, or on this thread) and write the observation
+/// Run one exchange of `batch` (where `runner` says) and write the observation
 /// header. A panic outside every env's own step and reset (which the batch contains)
 /// fails the whole exchange with `EnvFailure`: nothing could be returned.
 fn run_exchange(
     batch: &mut EnvBatch,
-    pool: Option<&WorkerPool>,
+    runner: Runner<'_>,
     op: Op,
     action: &Sample<Ipc, [u8], ActionHeader>,
     obs: &mut SampleMut<Ipc, [u8], ObsHeader>,
 ) -> Result<Exchanged, ExchangeError> {
     let seq = action.user_header().seq;
     let result = catch_unwind(AssertUnwindSafe(|| {
-        batch.exchange(pool, op, action.payload(), obs.payload_mut())
+        batch.exchange(runner, op, action.payload(), obs.payload_mut())
     }))
     .unwrap_or_else(|payload| {
         tracing::warn!(
@@ -259,6 +287,11 @@ impl Dispatcher {
             .create()
             .map_err(|e| ServiceError::new(&names.wake(), e))?;
         let pool = Arc::new(WorkerPool::new(options.threads, options.worker_nice)?);
+        let lane = if options.lane_budget.is_zero() {
+            None
+        } else {
+            Some(Lane::start(options.worker_nice).map_err(StartError::Lane)?)
+        };
         let (completed_tx, completed) = channel();
         let registry = Arc::new(registry);
         // The builder opens new leases' services through a node of its own (a node is
@@ -298,6 +331,8 @@ impl Dispatcher {
             pending: Vec::new(),
             next_ticket: 1,
             pool,
+            lane,
+            big_in_flight: 0,
             leases: Vec::new(),
             closing: Vec::new(),
             in_flight: 0,
@@ -420,6 +455,7 @@ impl Dispatcher {
     /// exchange of every idle lease with an action waiting. True if anything happened.
     fn serve_leases(&mut self) -> bool {
         let mut served = self.take_back_completed();
+        let lane_budget_ns = self.options.lane_budget.as_nanos() as f64;
         for lease in &mut self.leases {
             if lease.in_flight() {
                 continue;
@@ -438,12 +474,10 @@ impl Dispatcher {
                 lease.hold(action);
                 continue;
             };
-            let cheap = lease
-                .batch()
-                .and_then(|b| b.serial_cost_ns(op))
-                .is_some_and(|cost| cost <= INLINE_BUDGET_NS);
+            let cost = lease.batch().and_then(|b| b.serial_cost_ns(op));
+            let cheap = cost.is_some_and(|cost| cost <= INLINE_BUDGET_NS);
             if cheap && let Some(batch) = lease.batch_mut() {
-                let result = run_exchange(batch, None, op, &action, &mut obs);
+                let result = run_exchange(batch, Runner::Inline, op, &action, &mut obs);
                 drop(action);
                 lease.publish(obs);
                 let done = account(lease, &result);
@@ -455,17 +489,36 @@ impl Dispatcher {
             let Some(batch) = lease.take_batch() else {
                 continue;
             };
+            let medium = cost.is_some_and(|cost| cost <= lane_budget_ns);
+            let route = match (medium, &self.lane) {
+                (true, Some(_)) if self.big_in_flight > 0 => Route::Lane,
+                (true, _) => Route::Pool,
+                (false, _) => Route::Big,
+            };
             let handoff = Handoff {
                 lease: lease.id,
+                route,
                 op,
                 batch,
                 action,
                 obs,
                 notifier: lease.notifier(),
             };
-            let (pool, done) = (Arc::clone(&self.pool), self.completed_tx.clone());
             self.in_flight += 1;
-            self.pool.spawn(move || handoff.run(&pool, &done));
+            let done = self.completed_tx.clone();
+            let on_lane = match (&self.lane, route) {
+                (Some(lane), Route::Lane) => lane.spawn(Box::new(move || handoff.run(None, &done))),
+                _ => {
+                    self.big_in_flight += usize::from(route == Route::Big);
+                    let pool = Arc::clone(&self.pool);
+                    self.pool.spawn(move || handoff.run(Some(&pool), &done));
+                    Ok(())
+                }
+            };
+            if let Err(task) = on_lane {
+                // The lane's thread is gone (not expected): the pool runs the task.
+                self.pool.spawn(task);
+            }
         }
         served
     }
@@ -476,11 +529,16 @@ impl Dispatcher {
         self.in_flight -= 1;
         let Completed {
             lease: id,
+            route,
             batch,
             result,
         } = done;
+        if route == Route::Big {
+            self.big_in_flight -= 1;
+        }
         if let Some(lease) = self.leases.iter_mut().find(|l| l.id == id) {
             lease.restore(batch);
+            lease.lane_exchanges += u64::from(route == Route::Lane);
             let done = account(lease, &result);
             self.env_steps += done.steps;
             self.physics_errors += done.physics_errors;

@@ -34,4 +34,7 @@ pub enum StartError {
     /// The env builder thread could not start.
     #[error("cannot start the env builder thread: {0}")]
     Builder(std::io::Error),
+    /// The medium lane's thread could not start.
+    #[error("cannot start the medium lane's thread: {0}")]
+    Lane(std::io::Error),
 }

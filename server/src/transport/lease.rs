@@ -28,6 +28,8 @@ pub(crate) struct Lease {
     pub physics_errors: u64,
     /// Env steps and resets that failed inside the env (flagged `env_error`).
     pub env_errors: u64,
+    /// Exchanges that ran on the medium lane.
+    pub lane_exchanges: u64,
     pub last_activity: Instant,
     /// The env id (kept here: the batch is away while its exchange runs on the pool).
     pub env_id: String,
@@ -100,6 +102,7 @@ impl Lease {
             env_steps: 0,
             physics_errors: 0,
             env_errors: 0,
+            lane_exchanges: 0,
             last_activity: Instant::now(),
             env_id: batch.spec().env_id.clone(),
             layout: batch.layout().clone(),
