@@ -478,3 +478,195 @@ fn an_oversized_control_request_is_refused_unparsed() {
     );
     lease.reset(None, None).expect("reset");
 }
+
+/// Control replies the server preallocates (`CONTROL_RESPONSES` in the dispatcher).
+const CONTROL_RESPONSES: usize = 64;
+
+#[test]
+fn clients_that_never_take_their_replies_do_not_block_the_others() {
+    // More raw clients than the server has reply samples send a request each and never
+    // take the reply (stopped or malicious processes). The server lives; the requests
+    // that find no free reply sample are answered as soon as the stuck clients go away.
+    // (With iceoryx2's growable reply segment and fewer slots, the server panicked here.)
+    use echogym_protocol::services::{Access, MAX_CLIENTS, control_service, event_service};
+    use echogym_protocol::{ControlHeader, PROTOCOL_VERSION, ServiceNames};
+    use iceoryx2::prelude::*;
+
+    let mut server = TestServer::start_in("isolation-stuck", common::fresh_location(), &[]);
+    let names = ServiceNames::new(&server.name).unwrap();
+    let config = server.location.iceoryx_config().unwrap();
+    let node = NodeBuilder::new()
+        .config(&config)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc_threadsafe::Service>()
+        .unwrap();
+    let control = control_service(&node, &names.control(), Access::Open).unwrap();
+    let wake = event_service(&node, &names.wake(), MAX_CLIENTS, Access::Open).unwrap();
+    let wake = wake.notifier_builder().create().unwrap();
+    let text = serde_json::to_vec(&ControlRequest::Status).unwrap();
+    let mut stuck = Vec::new();
+    for _ in 0..3 * CONTROL_RESPONSES {
+        let client = control
+            .client_builder()
+            .initial_max_slice_len(4096)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .create()
+            .unwrap();
+        let mut request = client.loan_slice_uninit(text.len()).unwrap();
+        *request.user_header_mut() = ControlHeader {
+            protocol_version: PROTOCOL_VERSION,
+            payload_len: text.len() as u32,
+        };
+        let pending = request.write_from_slice(&text).send().unwrap();
+        wake.notify().unwrap();
+        stuck.push((client, pending)); // never received
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    assert!(
+        server.child.as_mut().unwrap().try_wait().unwrap().is_none(),
+        "the server died"
+    );
+    // A well-behaved client's request waits for a free reply sample ...
+    let asking = {
+        let options = server.options();
+        std::thread::spawn(move || {
+            let connection = Connection::connect(&options).expect("connect");
+            let started = Instant::now();
+            assert!(status(&connection).leases.is_empty());
+            started.elapsed()
+        })
+    };
+    std::thread::sleep(Duration::from_millis(500));
+    // ... which the stuck clients free when they go away.
+    drop(stuck);
+    let waited = asking.join().expect("the status request was answered");
+    assert!(waited < Duration::from_secs(10), "{waited:?}");
+    // Every reply sample is usable again.
+    let connection = server.connect();
+    for _ in 0..2 * CONTROL_RESPONSES {
+        status(&connection);
+    }
+    drop((wake, control, node));
+}
+
+#[test]
+fn clients_going_away_do_not_stall_a_bystander() {
+    // 20 clients connect, ask for the status and go away while a bystander steps. Each
+    // disconnection made the server sweep its reply bookkeeping on the dispatcher: one
+    // flag per reply slot, per channel, per possible segment (18 M flags with iceoryx2's
+    // defaults for 512 clients: 125–180 ms on a 2-core VM), a stall of every lease after
+    // every client that left; now a few hundred flags.
+    let server = TestServer::start_in("isolation-disconnect", common::fresh_location(), &[]);
+    let connection = server.connect();
+    let mut bystander = attach_null(
+        &connection,
+        1,
+        serde_json::json!({}),
+        AutoresetMode::SameStep,
+    );
+    bystander.reset(None, None).expect("reset");
+    let done = Arc::new(AtomicBool::new(false));
+    let churn = {
+        let (options, done) = (server.options(), done.clone());
+        std::thread::spawn(move || {
+            for _ in 0..20 {
+                let client = Connection::connect(&options).expect("connect");
+                status(&client);
+                drop(client);
+                std::thread::sleep(Duration::from_millis(50));
+            }
+            done.store(true, Ordering::SeqCst);
+        })
+    };
+    let mut latencies = Vec::new();
+    while !done.load(Ordering::SeqCst) {
+        let started = Instant::now();
+        bystander.step(&[0.0; 7], None).expect("step");
+        latencies.push(started.elapsed());
+        std::thread::sleep(Duration::from_micros(500));
+    }
+    churn.join().expect("churn");
+    latencies.sort();
+    let slow = latencies
+        .iter()
+        .filter(|&&l| l > Duration::from_millis(50))
+        .count();
+    eprintln!(
+        "bystander: {} steps beside 20 disconnections, {slow} over 50 ms, slowest {:?}",
+        latencies.len(),
+        latencies.last().copied().unwrap_or_default()
+    );
+    // Generous for a loaded machine (a stall per disconnection would be ≈ 20).
+    assert!(slow < 5, "{slow} bystander steps over 50 ms");
+}
+
+/// Median step latency of a medium lease (4 `Null-v0` envs burning 150 µs each: above
+/// the dispatcher's 100 µs inline budget) while two slow leases (`Faulty-v0`, 200 ms a
+/// step) keep both pool workers busy; `extra` are the server's flags.
+fn medium_beside_big(name: &str, extra: &[&str]) -> Duration {
+    let mut flags = vec!["--fault-injection"];
+    flags.extend_from_slice(extra);
+    let server = TestServer::start_in(name, common::fresh_location(), &flags);
+    let connection = server.connect();
+    let mut medium = attach_null(
+        &connection,
+        4,
+        serde_json::json!({"step_cost_us": 150.0}),
+        AutoresetMode::SameStep,
+    );
+    medium.reset(None, None).expect("reset");
+    for _ in 0..5 {
+        medium.step(&[0.0; 28], None).expect("step"); // its cost is measured
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    let slow: Vec<_> = (0..2)
+        .map(|index| {
+            let (options, stop) = (server.options(), stop.clone());
+            std::thread::spawn(move || {
+                let connection = Connection::connect(&options).expect("connect");
+                let mut lease = connection
+                    .attach(&AttachOptions {
+                        env_id: "echogym/Faulty-v0".into(),
+                        num_envs: 1,
+                        config: serde_json::json!({"stall_ms": 200, "env_index": index})
+                            .as_object()
+                            .cloned()
+                            .unwrap_or_default(),
+                        autoreset_mode: AutoresetMode::SameStep,
+                    })
+                    .expect("attach");
+                lease.reset(None, None).expect("reset");
+                while !stop.load(Ordering::SeqCst) {
+                    lease.step(&[0.0], None).expect("slow step");
+                }
+            })
+        })
+        .collect();
+    std::thread::sleep(Duration::from_millis(500)); // both slow leases step
+    let mut latencies: Vec<Duration> = (0..20)
+        .map(|_| {
+            let started = Instant::now();
+            medium.step(&[0.0; 28], None).expect("step");
+            let elapsed = started.elapsed();
+            std::thread::sleep(Duration::from_millis(10));
+            elapsed
+        })
+        .collect();
+    stop.store(true, Ordering::SeqCst);
+    for thread in slow {
+        thread.join().expect("slow client");
+    }
+    latencies.sort();
+    latencies[latencies.len() / 2]
+}
+
+#[test]
+fn a_medium_exchange_does_not_queue_behind_big_ones() {
+    // Before the medium lane, the medium exchange queued on the pool behind the slow
+    // ones (median ≈ 100–200 ms); on the lane it takes about its own cost. (With
+    // `--lane-budget-us 0`, the old routing, this fails: checked by hand.)
+    let median = medium_beside_big("isolation-medium", &[]);
+    eprintln!("medium lease beside two 200 ms exchanges: median step {median:?}");
+    // Generous for a loaded machine: its own cost is 0.6 ms.
+    assert!(median < Duration::from_millis(50), "median {median:?}");
+}

@@ -136,16 +136,27 @@ impl Drop for TestServer {
     }
 }
 
-/// Spawn `echogym serve` without waiting.
+/// Spawn `echogym serve` without waiting. Its output is kept from the test's unless
+/// `ECHOGYM_TEST_SERVER_LOG` names a log filter (e.g. `echogym=debug`): then the server
+/// logs at that level to the test's stdout and stderr.
 pub fn spawn_server(name: &str, location: &IpcLocation, extra: &[&str]) -> Child {
+    let log = std::env::var("ECHOGYM_TEST_SERVER_LOG").ok();
+    let output = || {
+        if log.is_some() {
+            Stdio::inherit()
+        } else {
+            Stdio::piped()
+        }
+    };
     Command::new(binary())
-        .args(["serve", "--name", name, "--log", "warn", "--threads", "2"])
+        .args(["serve", "--name", name, "--threads", "2", "--log"])
+        .arg(log.as_deref().unwrap_or("warn"))
         .args(extra)
         .env("ECHOGYM_IPC_PREFIX", &location.prefix)
         .env("ECHOGYM_IPC_ROOT", &location.root)
         .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
+        .stdout(output())
+        .stderr(output())
         .spawn()
         .expect("spawn echogym serve")
 }

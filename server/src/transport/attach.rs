@@ -16,7 +16,7 @@ use super::builder::{AttachBuildError, BuildJob};
 use super::dispatcher::Dispatcher;
 use super::lease::Lease;
 use super::pending::PendingAttach;
-use super::reply::{ControlRequestHandle, error, refusal, respond};
+use super::reply::{ControlRequestHandle, error, refusal};
 use crate::pool::BatchBuildError;
 
 /// What an accepted attach request hands to [`Dispatcher::queue_attach`].
@@ -165,8 +165,8 @@ impl Dispatcher {
             client_label: attach.client_label.clone(),
         });
         if !queued {
-            respond(
-                &request,
+            self.answer(
+                request,
                 &error(ControlErrorKind::Internal, "the env builder is gone"),
             );
             return;
@@ -214,7 +214,7 @@ impl Dispatcher {
                         AttachBuildError::Build(_) => ControlErrorKind::InvalidConfig,
                     };
                     tracing::warn!(client = %pending.client_label, error = %e, "attach failed");
-                    respond(&pending.request, &error(kind, e.to_string()));
+                    self.answer(pending.request, &error(kind, e.to_string()));
                     continue;
                 }
             };
@@ -248,7 +248,7 @@ impl Dispatcher {
                 "lease attached"
             );
             self.leases.push(lease);
-            respond(&pending.request, &ControlReply::Attached(reply));
+            self.answer(pending.request, &ControlReply::Attached(reply));
         }
         finished
     }

@@ -43,7 +43,7 @@ use super::builder::Builder;
 use super::error::StartError;
 use super::lease::{Lease, publish};
 use super::pending::PendingAttach;
-use super::reply::{error, parse_control, respond};
+use super::reply::{ControlRequestHandle, Unsent, error, parse_control, respond};
 use super::shutdown::Shutdown;
 use crate::envs::EnvRegistry;
 use crate::pool::{EnvBatch, ExchangeError, Exchanged, Lane, Runner, WorkerPool};
@@ -55,6 +55,33 @@ const BUILD_POLL: Duration = Duration::from_millis(1);
 /// saves); anything else, or an exchange of unknown cost, goes to the pool. It is what
 /// one cheap lease can delay the others by.
 pub(super) const INLINE_BUDGET_NS: f64 = 100_000.0;
+
+/// Control replies the server's port preallocates (iceoryx2's default for 512 clients is
+/// 12,288), in one fixed segment of [`MAX_REPLY_BYTES`] slots.
+///
+/// A client's disconnection made the dispatcher sweep one flag per reply slot, per
+/// channel, per possible segment (255 with a growable segment): 18 M flags, 125–180 ms
+/// during which no lease was served, after every client that went away (found by the
+/// head-of-line benchmark; it was the soak's bystander tail). With one fixed segment of
+/// 64 slots the sweep is ≈ 400 flags. A slot is in use from a reply's send until its
+/// client takes it (microseconds: each client has one request at a time), so 64 suffice;
+/// a reply that finds none free waits on the dispatcher (`unsent`) until one is. (A
+/// growable segment with fewer slots is not an option: iceoryx2 0.10 then panics when the
+/// slots run out, found by `tests/isolation.rs`.)
+pub(super) const CONTROL_RESPONSES: usize = 64;
+
+/// Loans one reply may try. iceoryx2 0.10 counts a loan that failed for want of a free
+/// sample against the request's loans and never gives it back, so after this many failed
+/// tries (retried with back-off up to 0.5 s: ≈ 8 min) the reply is given up and its
+/// client times out. (With iceoryx2's default of 2, a reply that found no free sample
+/// twice could never be sent, found by `tests/isolation.rs`.)
+pub(super) const MAX_LOANS_PER_REPLY: usize = 1024;
+
+/// Longest control reply \[bytes\]: a status of 4,096 leases (≈ 400 B each) or an attach
+/// reply echoing a 1 MiB config fit. A longer one is answered with an `Internal` error
+/// naming its size. Slots are touched only as far as written, so the 64 × 4 MiB segment
+/// costs memory only for the replies actually sent.
+pub(super) const MAX_REPLY_BYTES: usize = 4 << 20;
 
 use echogym_protocol::services::{
     Access, ControlService, EventService, MAX_CLIENTS, ServiceError, control_service, event_service,
@@ -128,6 +155,8 @@ pub struct Dispatcher {
     pub(super) reclaimed: u64,
     pub(super) shutdown: Shutdown,
     last_reply: Instant,
+    /// Replies that found no free reply sample (see [`CONTROL_RESPONSES`]).
+    unsent: Vec<Unsent>,
     control:
         Server<Ipc, [u8], echogym_protocol::ControlHeader, [u8], echogym_protocol::ControlHeader>,
     wake: Listener<Ipc>,
@@ -273,8 +302,10 @@ impl Dispatcher {
         // the single server port (and the single wake listener).
         let control = control_service
             .server_builder()
-            .initial_max_slice_len(64 * 1024)
-            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .initial_max_slice_len(MAX_REPLY_BYTES)
+            .allocation_strategy(AllocationStrategy::Static)
+            .override_response_preallocation(|_| CONTROL_RESPONSES)
+            .max_loaned_responses_per_request(MAX_LOANS_PER_REPLY)
             .create()
             .map_err(|e| match running_server_pid(&iox_config, &options.name) {
                 Some(pid) => already_running(Some(pid)),
@@ -347,6 +378,7 @@ impl Dispatcher {
             reclaimed: 0,
             shutdown,
             last_reply: Instant::now(),
+            unsent: Vec::new(),
             control,
             wake,
             _control_service: control_service,
@@ -384,8 +416,9 @@ impl Dispatcher {
                 continue;
             }
             let mut timeout = next_housekeeping.saturating_duration_since(Instant::now());
-            if !self.pending.is_empty() {
-                // A build finishing does not ring the wake event: look again soon.
+            if !self.pending.is_empty() || !self.unsent.is_empty() {
+                // A build finishing, or a reply sample freed, rings no wake event: look
+                // again soon.
                 timeout = timeout.min(BUILD_POLL);
             }
             let _ = self
@@ -408,7 +441,7 @@ impl Dispatcher {
     }
 
     fn serve_control(&mut self) -> bool {
-        let mut served = false;
+        let mut served = self.retry_unsent();
         loop {
             let request = match self.control.receive() {
                 Ok(Some(request)) => request,
@@ -435,10 +468,32 @@ impl Dispatcher {
                 },
                 Ok(other) => self.handle_control(other),
             };
-            respond(&request, &reply);
-            self.last_reply = Instant::now();
+            self.answer(request, &reply);
         }
         served
+    }
+
+    /// Send `reply` to the client of `request`, or keep it until a reply sample is free.
+    pub(super) fn answer(&mut self, request: ControlRequestHandle, reply: &ControlReply) {
+        if let Some(unsent) = respond(request, reply) {
+            tracing::debug!("no free control reply sample; the reply waits for one");
+            self.unsent.push(unsent);
+        }
+        self.last_reply = Instant::now();
+    }
+
+    /// Send the replies that found no free sample, if they can go now; true if any went
+    /// (or was dropped, its client gone).
+    fn retry_unsent(&mut self) -> bool {
+        if self.unsent.is_empty() {
+            return false;
+        }
+        let (before, now) = (self.unsent.len(), Instant::now());
+        self.unsent = std::mem::take(&mut self.unsent)
+            .into_iter()
+            .filter_map(|unsent| unsent.retry(now))
+            .collect();
+        self.unsent.len() < before
     }
 
     /// Take back the batches of exchanges that ended on the pool; true if any.
@@ -630,14 +685,16 @@ impl Dispatcher {
             pending
                 .cancel
                 .store(true, std::sync::atomic::Ordering::Relaxed);
-            respond(
-                &pending.request,
+            // Best effort: a reply that finds no free sample is not waited for.
+            let _unsent = respond(
+                pending.request,
                 &error(
                     echogym_protocol::ControlErrorKind::ShuttingDown,
                     "the server stopped before the envs were built",
                 ),
             );
         }
+        self.retry_unsent();
         for lease in &self.leases {
             lease.publish_status(0, StepStatus::ServerStopped, None, None);
         }

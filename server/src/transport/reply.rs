@@ -5,6 +5,8 @@ use echogym_protocol::{
     ControlError, ControlErrorKind, ControlHeader, ControlReply, ControlRequest, PROTOCOL_VERSION,
 };
 use iceoryx2::active_request::ActiveRequest;
+use iceoryx2::port::LoanError;
+use std::time::{Duration, Instant};
 
 /// A received control request, kept until it is answered.
 pub(super) type ControlRequestHandle = ActiveRequest<Ipc, [u8], ControlHeader, [u8], ControlHeader>;
@@ -21,8 +23,40 @@ pub(super) fn error(kind: ControlErrorKind, message: impl Into<String>) -> Contr
     ControlReply::Error(refusal(kind, message))
 }
 
+/// A reply that found no free reply sample: kept by the dispatcher and sent on a later
+/// pass (see `CONTROL_RESPONSES`), or dropped once its client stops waiting.
+pub(super) struct Unsent {
+    pub request: ControlRequestHandle,
+    text: Vec<u8>,
+    /// When to try again (backing off from 1 ms to 0.5 s).
+    next_try: Instant,
+    backoff: Duration,
+}
+
+impl Unsent {
+    /// Try again if it is time; `Some` while there is still no free sample.
+    pub fn retry(mut self, now: Instant) -> Option<Unsent> {
+        if !self.request.is_connected() {
+            tracing::debug!("a held control reply was dropped: its client stopped waiting");
+            return None;
+        }
+        if now < self.next_try {
+            return Some(self);
+        }
+        let (request, text) = (self.request, self.text);
+        send(request, text).map(|mut unsent| {
+            self.backoff = (self.backoff * 2).min(Duration::from_millis(500));
+            unsent.backoff = self.backoff;
+            unsent.next_try = now + self.backoff;
+            unsent
+        })
+    }
+}
+
 /// Send `reply` to the client of `request` (a client that went away is only logged).
-pub(super) fn respond(request: &ControlRequestHandle, reply: &ControlReply) {
+/// `Some` when no reply sample was free: keep it and [`Unsent::retry`] later.
+#[must_use = "a reply that found no free sample must be kept and retried"]
+pub(super) fn respond(request: ControlRequestHandle, reply: &ControlReply) -> Option<Unsent> {
     let text = serde_json::to_vec(reply).unwrap_or_else(|e| {
         serde_json::to_vec(&ControlReply::Error(ControlError {
             kind: ControlErrorKind::Internal,
@@ -30,24 +64,51 @@ pub(super) fn respond(request: &ControlRequestHandle, reply: &ControlReply) {
         }))
         .unwrap_or_default()
     });
+    if text.len() > super::dispatcher::MAX_REPLY_BYTES {
+        tracing::warn!(len = text.len(), "a control reply was too long to send");
+        let error = ControlReply::Error(ControlError {
+            kind: ControlErrorKind::Internal,
+            message: format!(
+                "the reply is {} bytes, over the {} bytes a reply can carry",
+                text.len(),
+                super::dispatcher::MAX_REPLY_BYTES
+            ),
+        });
+        return send(request, serde_json::to_vec(&error).unwrap_or_default());
+    }
+    send(request, text)
+}
+
+fn send(request: ControlRequestHandle, text: Vec<u8>) -> Option<Unsent> {
     let Ok(payload_len) = u32::try_from(text.len()) else {
         tracing::error!(len = text.len(), "a control reply over 4 GiB was not sent");
-        return;
+        return None;
     };
-    let sent = request
-        .loan_slice_uninit(text.len())
-        .map(|mut response| {
-            *response.user_header_mut() = ControlHeader {
-                protocol_version: PROTOCOL_VERSION,
-                payload_len,
-            };
-            response.write_from_slice(&text)
-        })
-        .map_err(|e| format!("{e:?}"))
-        .and_then(|response| response.send().map_err(|e| format!("{e:?}")));
-    if let Err(e) = sent {
+    let response = match request.loan_slice_uninit(text.len()) {
+        Ok(response) => response,
+        Err(LoanError::OutOfMemory) => {
+            return Some(Unsent {
+                request,
+                text,
+                next_try: Instant::now() + Duration::from_millis(1),
+                backoff: Duration::from_millis(1),
+            });
+        }
+        Err(e) => {
+            // `ExceedsMaxLoans` after `MAX_LOANS_PER_REPLY` failed tries: given up.
+            tracing::warn!(error = ?e, "a control reply could not be sent; its client times out");
+            return None;
+        }
+    };
+    let mut response = response;
+    *response.user_header_mut() = ControlHeader {
+        protocol_version: PROTOCOL_VERSION,
+        payload_len,
+    };
+    if let Err(e) = response.write_from_slice(&text).send() {
         tracing::debug!(error = ?e, "sending a control reply failed");
     }
+    None
 }
 
 /// Largest control request the server parses \[bytes\]. Requests are a few hundred bytes
