@@ -120,12 +120,7 @@ impl Connection {
         };
         let control_service =
             control_service(&node, &names.control(), Access::Open).map_err(|_| not_running())?;
-        let control = control_service
-            .client_builder()
-            .initial_max_slice_len(4096)
-            .allocation_strategy(AllocationStrategy::PowerOfTwo)
-            .create()
-            .map_err(|e| ConnectError::Ipc(format!("{e:?}")))?;
+        let control = new_control_client(&control_service).map_err(ConnectError::Ipc)?;
         let wake_service = event_service(&node, &names.wake(), MAX_CLIENTS, Access::Open)
             .map_err(|_| not_running())?;
         let wake = wake_service
@@ -190,8 +185,15 @@ impl Inner {
         request: &ControlRequest,
         timeout: Duration,
     ) -> Result<ControlReply, ControlCallError> {
+        // A server restarted under the same name adopts the control service this
+        // connection holds, and would answer it; but this connection (its leases, its
+        // liveness checks) belongs to the server it reached, so a request through it
+        // after that server died ends in `ServerStopped`, not in the new server.
+        if !node_alive(&self.config, self.server) {
+            return Err(ControlCallError::ServerStopped);
+        }
         let text = serde_json::to_vec(request).expect("requests serialize");
-        let control = self.control.lock().unwrap_or_else(|p| p.into_inner());
+        let mut control = self.control.lock().unwrap_or_else(|p| p.into_inner());
         let mut loan = control
             .loan_slice_uninit(text.len())
             .map_err(|e| ControlCallError::Ipc(format!("{e:?}")))?;
@@ -221,6 +223,15 @@ impl Inner {
             }
             let now = Instant::now();
             if now.duration_since(started) > timeout {
+                // Give up visibly: the server cancels work for a request whose client
+                // port is gone (the request's own "connected" state is not reliable in
+                // iceoryx2 0.10, see the server's `client_waiting`), so this port goes
+                // and a fresh one serves the next request.
+                drop(pending);
+                match new_control_client(&self._control_service) {
+                    Ok(fresh) => *control = fresh,
+                    Err(e) => tracing::debug!(error = %e, "could not renew the control port"),
+                }
                 return Err(ControlCallError::Timeout(timeout));
             }
             if now >= next_check {
@@ -233,6 +244,18 @@ impl Inner {
             pause = (pause * 2).min(Duration::from_millis(1));
         }
     }
+}
+
+/// A client port on the control service.
+fn new_control_client(
+    service: &ControlService<ipc_threadsafe::Service>,
+) -> Result<ControlClient, String> {
+    service
+        .client_builder()
+        .initial_max_slice_len(4096)
+        .allocation_strategy(AllocationStrategy::PowerOfTwo)
+        .create()
+        .map_err(|e| format!("{e:?}"))
 }
 
 /// The node id of the live server called `name`, if one runs.

@@ -218,7 +218,7 @@ impl Dispatcher {
                     continue;
                 }
             };
-            if !pending.request.is_connected() || pending.cancel.load(Ordering::Relaxed) {
+            if !self.client_waiting(&pending.request) || pending.cancel.load(Ordering::Relaxed) {
                 tracing::info!(
                     client = %pending.client_label,
                     env = %pending.env_id,
@@ -258,7 +258,7 @@ impl Dispatcher {
     pub(super) fn cancel_abandoned(&mut self, alive: Option<&[u128]>) {
         for pending in &self.pending {
             let dead = alive.is_some_and(|alive| !alive.contains(&pending.client_node));
-            if (dead || !pending.request.is_connected())
+            if (dead || !self.client_waiting(&pending.request))
                 && !pending.cancel.swap(true, Ordering::Relaxed)
             {
                 tracing::debug!(ticket = pending.ticket, dead, "cancelling a build");

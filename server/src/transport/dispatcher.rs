@@ -489,11 +489,35 @@ impl Dispatcher {
             return false;
         }
         let (before, now) = (self.unsent.len(), Instant::now());
-        self.unsent = std::mem::take(&mut self.unsent)
+        let kept: Vec<Unsent> = std::mem::take(&mut self.unsent)
             .into_iter()
-            .filter_map(|unsent| unsent.retry(now))
+            .filter_map(|unsent| unsent.retry(now, |request| self.client_waiting(request)))
             .collect();
+        self.unsent = kept;
         self.unsent.len() < before
+    }
+
+    /// Whether the client of `request` still waits for its reply: its control port is
+    /// still there (a dead client's node is found by housekeeping; the Rust client drops
+    /// its port when it gives up waiting). iceoryx2 0.10's `ActiveRequest::is_connected`
+    /// is not asked: it turned false for live clients still waiting, after some other
+    /// client died (found by the soak, one attach in a few hundred under kill -9 churn),
+    /// and the dispatcher then dropped their attaches: they waited 120 s for nothing,
+    /// while a reply sent anyway reached them.
+    pub(super) fn client_waiting(&self, request: &ControlRequestHandle) -> bool {
+        let origin = request.origin();
+        let mut found = false;
+        self._control_service
+            .dynamic_config()
+            .list_clients(|client| {
+                found = client.client_id == origin;
+                if found {
+                    CallbackProgression::Stop
+                } else {
+                    CallbackProgression::Continue
+                }
+            });
+        found
     }
 
     /// Take back the batches of exchanges that ended on the pool; true if any.

@@ -10,7 +10,8 @@ use super::reply::ControlRequestHandle;
 
 /// An attach whose envs are being built.
 pub(super) struct PendingAttach {
-    /// Where the reply goes (`is_connected` turns false when the client gives up).
+    /// Where the reply goes (its client port goes away when the client gives up, see
+    /// `Dispatcher::client_waiting`).
     pub request: ControlRequestHandle,
     pub ticket: u64,
     pub cancel: Arc<AtomicBool>,

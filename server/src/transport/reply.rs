@@ -34,9 +34,14 @@ pub(super) struct Unsent {
 }
 
 impl Unsent {
-    /// Try again if it is time; `Some` while there is still no free sample.
-    pub fn retry(mut self, now: Instant) -> Option<Unsent> {
-        if !self.request.is_connected() {
+    /// Try again if it is time; `Some` while there is still no free sample. `waiting`
+    /// says whether the request's client still waits (`Dispatcher::client_waiting`).
+    pub fn retry(
+        mut self,
+        now: Instant,
+        waiting: impl Fn(&ControlRequestHandle) -> bool,
+    ) -> Option<Unsent> {
+        if !waiting(&self.request) {
             tracing::debug!("a held control reply was dropped: its client stopped waiting");
             return None;
         }
