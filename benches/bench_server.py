@@ -41,21 +41,32 @@ class BenchServer:
         os.environ["ECHOGYM_IPC_PREFIX"] = self.prefix
         os.environ["ECHOGYM_IPC_ROOT"] = self.root
         os.environ["ECHOGYM_SERVER"] = self.name
+        self.start()
+        return self
+
+    def start(self) -> None:
+        """Start `echogym serve` (again, e.g. after `kill -9` of the last one) and wait
+        until it answers; RuntimeError if it exits or does not answer in 30 s."""
         binary = os.environ.get("ECHOGYM_BIN")
         command = [binary] if binary else [sys.executable, "-m", "echogym"]
         self.process = subprocess.Popen(
-            [*command, "serve", "--name", self.name, "--log", "warn", *self.extra],
+            [*command, "serve", "--name", self.name,
+             "--log", os.environ.get("ECHOGYM_BENCH_SERVER_LOG", "warn"), *self.extra],
             stdin=subprocess.DEVNULL,
         )
         deadline = time.monotonic() + 30
         while True:
             try:
                 _native.NativeClient(self.name)
-                return self
+                if self.process.poll() is None:
+                    return
             except _native.ServerNotRunningError:
-                if time.monotonic() > deadline or self.process.poll() is not None:
-                    raise RuntimeError("benchmark server did not start")
-                time.sleep(0.02)
+                pass
+            if self.process.poll() is not None:
+                raise RuntimeError(f"benchmark server exited with {self.process.returncode}")
+            if time.monotonic() > deadline:
+                raise RuntimeError("benchmark server did not start in 30 s")
+            time.sleep(0.02)
 
     def __exit__(self, *exc) -> None:
         self.process.send_signal(signal.SIGTERM)

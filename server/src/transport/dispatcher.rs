@@ -447,7 +447,7 @@ impl Dispatcher {
                 Ok(Some(request)) => request,
                 Ok(None) => break,
                 Err(e) => {
-                    tracing::debug!(error = ?e, "receiving a control request failed");
+                    tracing::warn!(error = ?e, "receiving a control request failed");
                     break;
                 }
             };
