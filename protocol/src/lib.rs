@@ -43,5 +43,5 @@ pub use wire::{ActionHeader, ControlHeader, ObsHeader};
 /// of its internals (kilobytes per line); echogym reports what matters through its own
 /// typed errors and `tracing`. Called by server and client before they open a node.
 pub fn quiet_iceoryx_logs() {
-    iceoryx2::prelude::set_log_level(if std::env::var_os("EG_IOX_DEBUG").is_some() { iceoryx2::prelude::LogLevel::Warn } else { iceoryx2::prelude::LogLevel::Error });
+    iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
 }
