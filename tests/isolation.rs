@@ -479,7 +479,7 @@ fn an_oversized_control_request_is_refused_unparsed() {
     lease.reset(None, None).expect("reset");
 }
 
-/// Control replies the server preallocates (`CONTROL_RESPONSES` in the dispatcher).
+/// Control replies the server preallocates (`CONTROL_RESPONSES` in `server/src/transport/reply.rs`).
 const CONTROL_RESPONSES: usize = 64;
 
 #[test]

@@ -23,6 +23,33 @@ pub(super) fn error(kind: ControlErrorKind, message: impl Into<String>) -> Contr
     ControlReply::Error(refusal(kind, message))
 }
 
+/// Control replies the server's port preallocates (iceoryx2's default for 512 clients is
+/// 12,288), in one fixed segment of [`MAX_REPLY_BYTES`] slots.
+///
+/// A client's disconnection made the dispatcher sweep one flag per reply slot, per
+/// channel, per possible segment (255 with a growable segment): 18 M flags, 125–180 ms
+/// during which no lease was served, after every client that went away (found by the
+/// head-of-line benchmark; it was the soak's bystander tail). With one fixed segment of
+/// 64 slots the sweep is ≈ 400 flags. A slot is in use from a reply's send until its
+/// client takes it (microseconds: each client has one request at a time), so 64 suffice;
+/// a reply that finds none free waits on the dispatcher (`unsent`) until one is. (A
+/// growable segment with fewer slots is not an option: iceoryx2 0.10 then panics when the
+/// slots run out, found by `tests/isolation.rs`.)
+pub(super) const CONTROL_RESPONSES: usize = 64;
+
+/// Loans one reply may try. iceoryx2 0.10 counts a loan that failed for want of a free
+/// sample against the request's loans and never gives it back, so after this many failed
+/// tries (retried with back-off up to 0.5 s: ≈ 8 min) the reply is given up and its
+/// client times out. (With iceoryx2's default of 2, a reply that found no free sample
+/// twice could never be sent, found by `tests/isolation.rs`.)
+pub(super) const MAX_LOANS_PER_REPLY: usize = 1024;
+
+/// Longest control reply \[bytes\]: a status of 4,096 leases (≈ 400 B each) or an attach
+/// reply echoing a 1 MiB config fit. A longer one is answered with an `Internal` error
+/// naming its size. Slots are touched only as far as written, so the 64 × 4 MiB segment
+/// costs memory only for the replies actually sent.
+pub(super) const MAX_REPLY_BYTES: usize = 4 << 20;
+
 /// A reply that found no free reply sample: kept by the dispatcher and sent on a later
 /// pass (see `CONTROL_RESPONSES`), or dropped once its client stops waiting.
 pub(super) struct Unsent {
@@ -69,14 +96,14 @@ pub(super) fn respond(request: ControlRequestHandle, reply: &ControlReply) -> Op
         }))
         .unwrap_or_default()
     });
-    if text.len() > super::dispatcher::MAX_REPLY_BYTES {
+    if text.len() > MAX_REPLY_BYTES {
         tracing::warn!(len = text.len(), "a control reply was too long to send");
         let error = ControlReply::Error(ControlError {
             kind: ControlErrorKind::Internal,
             message: format!(
                 "the reply is {} bytes, over the {} bytes a reply can carry",
                 text.len(),
-                super::dispatcher::MAX_REPLY_BYTES
+                MAX_REPLY_BYTES
             ),
         });
         return send(request, serde_json::to_vec(&error).unwrap_or_default());
