@@ -49,7 +49,7 @@ left and the server has cleaned what killed workers left, and samples the server
 resident memory, its open file descriptors and the `/dev/shm` segments under the
 server's prefix. Before the server is killed, and at the end of the run, it pauses the
 workers again, samples the same figures in the same state, and compares them with that
-server's baseline: each within 5 %. The figures of the idle server before any churn
+server's baseline: none more than 5 % above it (growth is a leak; fewer passes). The figures of the idle server before any churn
 ("cold") are printed beside them: the difference between cold and baseline is the
 first-use growth the warm-up absorbs. After the churn every worker is killed and the
 bystander detached: no lease may be left.
@@ -618,8 +618,11 @@ def main() -> int:
     unexpected = c("unexpected")
     observations = c("observations") + soak.bystander_checked
 
+    # A leak is growth: the figures after the churn may not exceed the baseline by more
+    # than 5 %. Fewer than at the baseline passes (ports of workers killed just before
+    # the baseline, not yet cleaned then, are gone later); the table shows both.
     def within(after: float, base: float) -> bool:
-        return after <= base * 1.05 and after >= base * 0.95
+        return after <= base * 1.05
 
     def drift(key: str) -> tuple[bool, str]:
         oks, parts = [], []
@@ -645,9 +648,9 @@ def main() -> int:
         (f"workers hung > {HUNG_S} s in one request or exchange = 0", not soak.hung,
          str(len(soak.hung))),
         ("leases left after the churn = 0", leftover_leases == 0, str(leftover_leases)),
-        ("server RSS within 5 % of its baseline [MiB]", rss_ok, rss_text),
-        ("server fds within 5 % of its baseline", fds_ok, fds_text),
-        ("/dev/shm segments within 5 % of the baseline", shm_ok, shm_text),
+        ("server RSS ≤ 105 % of its baseline [MiB]", rss_ok, rss_text),
+        ("server fds ≤ 105 % of its baseline", fds_ok, fds_text),
+        ("/dev/shm segments ≤ 105 % of the baseline", shm_ok, shm_text),
         ("head of line: window p99 ≤ 2 × solo p99, max ≤ 20 ms", windows_ok,
          f"{sum(w['pass'] for w in soak.windows)} of {len(soak.windows)} windows"),
     ]
