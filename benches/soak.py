@@ -318,6 +318,9 @@ class Soak:
         self.samples: list[tuple] = []
         self.restarts = self.restart_failures = 0
         self.bystander_stopped = 0  # ServerStoppedError seen by the bystander at restarts
+        # Restarts after which the bystander could not attach to the new server (its first
+        # try failed: e.g. the attach was never answered); it tries once more.
+        self.reattach_failures = 0
         self.bystander_lost = self.bystander_corrupt = self.bystander_unexpected = 0
         self.bystander_checked = 0
         self.notes: list[str] = []
@@ -542,7 +545,13 @@ class Soak:
             self.bystander_stopped += 1
         except echogym.EchogymError as e:
             self.notes.append(f"restart {self.restarts}: the bystander got {type(e).__name__}: {e}")
-        self.connect()
+        try:
+            self.connect()
+        except echogym.EchogymError as e:
+            self.reattach_failures += 1
+            self.notes.append(f"restart {self.restarts}: the bystander's attach to the new server "
+                              f"failed: {type(e).__name__}: {e}")
+            self.connect()
 
 
 def main() -> int:
@@ -640,6 +649,8 @@ def main() -> int:
         ("server alive at the end", alive, str(alive)),
         ("every restart started cleanly", soak.restart_failures == 0,
          f"{soak.restarts} restarts, {soak.restart_failures} failed starts"),
+        ("an old client attaches to the new server at once (bystander, each restart)",
+         soak.reattach_failures == 0, f"{soak.reattach_failures} of {soak.restarts} failed"),
         ("old clients got ServerStoppedError (bystander, each restart)",
          soak.bystander_stopped == soak.restarts, f"{soak.bystander_stopped} of {soak.restarts}"),
         ("lost observations = 0", lost == 0, str(lost)),
@@ -719,7 +730,7 @@ def main() -> int:
     w_p99 = max((w["loaded"][1] for w in soak.windows), default=float("nan"))
     w_max = max((w["loaded"][2] for w in soak.windows), default=float("nan"))
     print(f"RESULT ok={int(ok)} minutes={churn_s / 60:.1f} clients={args.clients} kills={soak.kills} "
-          f"restarts={soak.restarts} restart_failures={soak.restart_failures} observations={observations} "
+          f"restarts={soak.restarts} restart_failures={soak.restart_failures} reattach_failures={soak.reattach_failures} observations={observations} "
           f"lost={lost} corrupt={corrupt} unexpected={unexpected} leftover_leases={leftover_leases} "
           f"rss_ok={int(rss_ok)} fds_ok={int(fds_ok)} shm_ok={int(shm_ok)} windows={len(soak.windows)} "
           f"window_solo_p99_us={w_solo:.0f} window_p99_us={w_p99:.0f} window_max_us={w_max:.0f} "

@@ -261,7 +261,15 @@ impl Dispatcher {
             if (dead || !self.client_waiting(&pending.request))
                 && !pending.cancel.swap(true, Ordering::Relaxed)
             {
-                tracing::debug!(ticket = pending.ticket, dead, "cancelling a build");
+                // Which of the two: a client wrongly judged gone waits for its attach
+                // until its own deadline, so the log must tell them apart.
+                tracing::info!(
+                    ticket = pending.ticket,
+                    client = %pending.client_label,
+                    client_node = pending.client_node,
+                    reason = if dead { "its node is not alive" } else { "its control port is gone" },
+                    "cancelling a build"
+                );
             }
         }
     }
