@@ -721,7 +721,8 @@ def main() -> int:
     print(table)
     print()
     print(crit)
-    for note in [*soak.notes, *soak.worker_messages()][:80]:
+    # Worker messages and restart notes first: the per-segment notes can be many.
+    for note in [*soak.worker_messages(), *soak.notes][:80]:
         print("note:", note)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

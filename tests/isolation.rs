@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use common::{TestServer, attach_null};
+use common::{TestServer, attach_null, reset_bystander};
 use echogym_client::{AttachOptions, ConnectOptions, Connection, ControlCallError};
 use echogym_protocol::{AutoresetMode, ControlReply, ControlRequest, ServerStatus};
 
@@ -41,13 +41,7 @@ fn a_big_attach_does_not_stall_a_bystander() {
         let (options, attaching, done) = (options.clone(), attaching.clone(), done.clone());
         std::thread::spawn(move || {
             let connection = Connection::connect(&options).expect("connect");
-            let mut lease = attach_null(
-                &connection,
-                1,
-                serde_json::json!({}),
-                AutoresetMode::SameStep,
-            );
-            lease.reset(None, None).expect("reset");
+            let mut lease = reset_bystander(&connection);
             let (mut slowest, mut steps_during) = (Duration::ZERO, 0usize);
             while !done.load(Ordering::SeqCst) {
                 let started = Instant::now();
@@ -132,13 +126,7 @@ fn a_slow_exchange_does_not_stall_a_bystander() {
         })
     };
     let connection = server.connect();
-    let mut bystander = attach_null(
-        &connection,
-        1,
-        serde_json::json!({}),
-        AutoresetMode::SameStep,
-    );
-    bystander.reset(None, None).expect("reset");
+    let mut bystander = reset_bystander(&connection);
     while !stepping.load(Ordering::SeqCst) {
         bystander.step(&[0.0; 7], None).expect("step");
     }
@@ -558,13 +546,7 @@ fn clients_going_away_do_not_stall_a_bystander() {
     // every client that left; now a few hundred flags.
     let server = TestServer::start_in("isolation-disconnect", common::fresh_location(), &[]);
     let connection = server.connect();
-    let mut bystander = attach_null(
-        &connection,
-        1,
-        serde_json::json!({}),
-        AutoresetMode::SameStep,
-    );
-    bystander.reset(None, None).expect("reset");
+    let mut bystander = reset_bystander(&connection);
     let done = Arc::new(AtomicBool::new(false));
     let churn = {
         let (options, done) = (server.options(), done.clone());

@@ -22,7 +22,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use common::{TestServer, attach_null, null_obs};
+use common::{TestServer, null_obs, reset_bystander};
 use echogym_client::Connection;
 use echogym_protocol::services::{
     Access, ActionService, EventService, MAX_CLIENTS, ObsService, event_service, lease_channel,
@@ -207,13 +207,7 @@ fn bystander(
     let options = server.options();
     std::thread::spawn(move || {
         let connection = Connection::connect(&options).expect("connect");
-        let mut lease = attach_null(
-            &connection,
-            1,
-            serde_json::json!({}),
-            AutoresetMode::SameStep,
-        );
-        lease.reset(None, None).expect("reset");
+        let mut lease = reset_bystander(&connection);
         let (mut steps, mut slowest, mut problems) = (0usize, Duration::ZERO, Vec::new());
         let mut episode_step = 0.0f32;
         while !stop.load(Ordering::SeqCst) {

@@ -178,6 +178,18 @@ pub fn attach_null(
         .expect("attach")
 }
 
+/// A bystander: one `Null-v0` env (default config, same-step autoreset), reset.
+pub fn reset_bystander(connection: &Connection) -> Lease {
+    let mut lease = attach_null(
+        connection,
+        1,
+        serde_json::json!({}),
+        AutoresetMode::SameStep,
+    );
+    lease.reset(None, None).expect("reset");
+    lease
+}
+
 /// The float32 observation of env `env` (Null env: one field `obs`).
 pub fn null_obs(lease: &Lease, payload: &[u8], env: usize) -> Vec<f32> {
     let layout = lease.layout();

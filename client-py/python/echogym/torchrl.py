@@ -227,13 +227,18 @@ class EchoEnv(EnvBase):
         # carries no reward.
         return self._deliver(self.lease.reset(mask, seeds), reward=False)
 
-    def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
+    @staticmethod
+    def _action_array(tensordict: TensorDictBase) -> np.ndarray:
+        """The tensordict's action as the contiguous float32 CPU array a step sends."""
         action = tensordict.get("action").detach()
         if action.device.type != "cpu" or action.dtype != torch.float32:
             action = action.to("cpu", torch.float32)
         if not action.is_contiguous():
             action = action.contiguous()
-        return self._deliver(self.lease.step(action.numpy()))
+        return action.numpy()
+
+    def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
+        return self._deliver(self.lease.step(self._action_array(tensordict)))
 
     def _set_seed(self, seed: int | None) -> int | None:
         if seed is None:

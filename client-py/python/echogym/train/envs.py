@@ -183,12 +183,8 @@ class WorkerEnv(EchoEnv):
         return self._finish(out)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
-        action = tensordict.get("action").detach()
-        if action.device.type != "cpu" or action.dtype != torch.float32:
-            action = action.to("cpu", torch.float32)
-        if not action.is_contiguous():
-            action = action.contiguous()
-        out = self._entries(self._slot(self.lease.step(action.numpy())), reward=True)
+        out = self._entries(self._slot(self.lease.step(self._action_array(tensordict))),
+                            reward=True)
         reward = out["reward"]
         episode_reward = tensordict.get("episode_reward", None)
         out["episode_reward"] = (
