@@ -28,6 +28,20 @@ fn scan(num_envs: usize) -> AttachOptions {
     }
 }
 
+/// One reset `Faulty-v0` env whose steps stall as `config` says (`stall_ms`).
+fn slow_lease(connection: &Connection, config: serde_json::Value) -> echogym_client::Lease {
+    let mut lease = connection
+        .attach(&AttachOptions {
+            env_id: "echogym/Faulty-v0".into(),
+            num_envs: 1,
+            config: config.as_object().cloned().unwrap_or_default(),
+            autoreset_mode: AutoresetMode::SameStep,
+        })
+        .expect("attach");
+    lease.reset(None, None).expect("reset");
+    lease
+}
+
 #[test]
 fn a_big_attach_does_not_stall_a_bystander() {
     let server = TestServer::start("isolation-stall");
@@ -104,18 +118,7 @@ fn a_slow_exchange_does_not_stall_a_bystander() {
         let stepping = stepping.clone();
         std::thread::spawn(move || {
             let connection = Connection::connect(&slow_options).expect("connect");
-            let mut lease = connection
-                .attach(&AttachOptions {
-                    env_id: "echogym/Faulty-v0".into(),
-                    num_envs: 1,
-                    config: serde_json::json!({"stall_ms": 400})
-                        .as_object()
-                        .cloned()
-                        .unwrap_or_default(),
-                    autoreset_mode: AutoresetMode::SameStep,
-                })
-                .expect("attach");
-            lease.reset(None, None).expect("reset");
+            let mut lease = slow_lease(&connection, serde_json::json!({"stall_ms": 400}));
             stepping.store(true, Ordering::SeqCst);
             let started = Instant::now();
             for _ in 0..3 {
@@ -606,18 +609,10 @@ fn medium_beside_big(name: &str, extra: &[&str]) -> Duration {
             let (options, stop) = (server.options(), stop.clone());
             std::thread::spawn(move || {
                 let connection = Connection::connect(&options).expect("connect");
-                let mut lease = connection
-                    .attach(&AttachOptions {
-                        env_id: "echogym/Faulty-v0".into(),
-                        num_envs: 1,
-                        config: serde_json::json!({"stall_ms": 200, "env_index": index})
-                            .as_object()
-                            .cloned()
-                            .unwrap_or_default(),
-                        autoreset_mode: AutoresetMode::SameStep,
-                    })
-                    .expect("attach");
-                lease.reset(None, None).expect("reset");
+                let mut lease = slow_lease(
+                    &connection,
+                    serde_json::json!({"stall_ms": 200, "env_index": index}),
+                );
                 while !stop.load(Ordering::SeqCst) {
                     lease.step(&[0.0], None).expect("slow step");
                 }
