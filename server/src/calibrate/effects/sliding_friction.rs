@@ -106,6 +106,7 @@ impl Effect for SlidingFriction {
         // slides at one speed make them nearly collinear (μ·F_n·v̂ against b·v), and
         // then Coulomb friction, the larger part on skin, goes first.
         let (mut beta, mut predicted) = fit(series, train, true, &[true; 4]);
+        tracing::debug!("friction signature, both parts: {beta:?}");
         if beta[2] < 0.0 || beta[3] < 0.0 {
             (beta, predicted) = fit(series, train, true, &[true, true, true, false]);
             if beta[2] <= 0.0 {
