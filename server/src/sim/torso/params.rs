@@ -88,9 +88,11 @@ pub struct TorsoParams {
     /// `−m·a` along the probe's motion. Default 0 (the particles' own mass only).
     pub moving_mass: f64,
     /// Local stiffness scales around points of the top (e.g. a stiffer site found by
-    /// calibration): particle springs near `xy` are scaled towards `scale` (Gaussian
+    /// calibration): every elastic element near `xy` — the particles' springs, their
+    /// links to neighbours and to the ground — is scaled towards `scale` (Gaussian
     /// weight, σ = 4 cm: wider than the smoothing length, so the scale shows in the
-    /// contact stiffness). Default none.
+    /// contact stiffness). The neighbour links' damping, proportional to their
+    /// stiffness, scales with them. Default none.
     pub stiffness_sites: Vec<SiteStiffness>,
     /// Multi-rate stepping: while no probe face point can reach the skin within this
     /// many physics steps (2 mm margin, speeds of probe and skin included), the torso

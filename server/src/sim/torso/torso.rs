@@ -86,7 +86,8 @@ impl Torso {
             params.center_xy,
             params.bottom_z,
             params.spacing,
-        );
+        )
+        .with_stiffness_field(|xy| params.stiffness_scale(xy));
         let skin = Skin::new(
             layout.nx,
             layout.ny,
@@ -315,10 +316,10 @@ impl Torso {
             .map(|(m, v)| 0.5 * m * v * v)
             .sum();
         let springs: f64 = self
-            .mass
+            .spring
             .iter()
             .zip(&self.u)
-            .map(|(m, u)| 0.5 * m * self.params.stiffness * u * u)
+            .map(|(k, u)| 0.5 * k * u * u)
             .sum();
         let edges: f64 = self
             .layout
@@ -827,7 +828,7 @@ impl Torso {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::torso::Relaxation;
+    use crate::sim::torso::{Relaxation, SiteStiffness};
 
     fn level_probe(x: f64, y: f64, z: f64, vz: f64) -> ProbeKinematics {
         ProbeKinematics::upright([x, y, z], [0.0, 0.0, vz])
@@ -851,6 +852,38 @@ mod tests {
         assert!(
             (k - k_deep).abs() / k < 1e-6,
             "linear model: {k} vs {k_deep}"
+        );
+    }
+
+    /// A site's scale shows at the probe, softer as well as stiffer: with only the
+    /// particles' springs scaled, a site could not soften below ≈ 0.73 of the torso's
+    /// stiffness (the links to its neighbours held it); the volume term, global, and the
+    /// patch's width (σ = 4 cm, about what a press deforms) still keep the probe's
+    /// stiffness from following the scale in full.
+    #[test]
+    fn a_site_scale_shows_in_the_contact_stiffness() {
+        let plain = Torso::new(TorsoParams::default(), ProbeFace::default()).unwrap();
+        let k = plain.static_probe_stiffness([0.0, 0.0], 0.005);
+        let ratio = |scale: f64| {
+            let params = TorsoParams {
+                stiffness_sites: vec![SiteStiffness {
+                    name: "centre".into(),
+                    xy: [0.0, 0.0],
+                    scale,
+                }],
+                ..TorsoParams::default()
+            };
+            let torso = Torso::new(params, ProbeFace::default()).unwrap();
+            torso.static_probe_stiffness([0.0, 0.0], 0.005) / k
+        };
+        let ratios = [0.1, 0.5, 2.0, 5.0].map(ratio);
+        eprintln!("stiffness ratios at scales 0.1, 0.5, 2, 5: {ratios:?}");
+        assert!(ratios[0] < 0.5, "softest reachable {ratios:?}");
+        assert!(ratios[1] < 0.75, "scale 0.5 {ratios:?}");
+        assert!(ratios[2] > 1.5 && ratios[3] > 2.5, "stiffer {ratios:?}");
+        assert!(
+            ratios.windows(2).all(|w| w[0] < w[1]),
+            "monotone {ratios:?}"
         );
     }
 
