@@ -112,6 +112,48 @@ fn restart_after_kill_9_while_an_old_client_lives() {
     drop((lease, old_lease, old_connection));
 }
 
+#[test]
+fn a_client_waits_for_a_starting_servers_ports() {
+    // A server's node is alive before its control port exists (it first cleans what
+    // dead nodes left; the services themselves may still exist, held by a dead server's
+    // clients). Here a stand-in holds that state — a live node with a server's name, the
+    // control and wake services, no server port: a client must not take it for a
+    // running server (its request would reach no one and never be answered; seen after
+    // a restart in the soak benchmark) but wait, and then say none is running.
+    use echogym_protocol::ServiceNames;
+    use echogym_protocol::services::{Access, MAX_CLIENTS, control_service, event_service};
+    use iceoryx2::prelude::*;
+
+    let location = common::fresh_location();
+    let name = "half-started";
+    let config = location.iceoryx_config().unwrap();
+    let node = NodeBuilder::new()
+        .config(&config)
+        .name(&NodeName::new(&format!("echogym-serve-{name}-{}", std::process::id())).unwrap())
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc_threadsafe::Service>()
+        .unwrap();
+    let names = ServiceNames::new(name).unwrap();
+    let _control = control_service(&node, &names.control(), Access::Create).unwrap();
+    let _wake = event_service(&node, &names.wake(), MAX_CLIENTS, Access::Create).unwrap();
+    let options = echogym_client::ConnectOptions {
+        name: name.into(),
+        location: location.clone(),
+        ..Default::default()
+    };
+    let started = Instant::now();
+    let result = echogym_client::Connection::connect(&options);
+    assert!(
+        matches!(
+            result,
+            Err(echogym_client::ConnectError::ServerNotRunning { .. })
+        ),
+        "connected to a server without ports: {:?}",
+        result.map(|_| ())
+    );
+    assert!(started.elapsed() >= Duration::from_secs(5), "did not wait");
+}
+
 /// Child process body for `dead_client_lease_is_reclaimed`: attach and step forever.
 #[test]
 #[ignore = "run as a child process by the lifecycle tests"]

@@ -118,6 +118,9 @@ impl Connection {
         let Some(server) = server_node(&config, &options.name) else {
             return Err(not_running());
         };
+        if !server_is_up(&config, &names, server) {
+            return Err(not_running());
+        }
         let control_service =
             control_service(&node, &names.control(), Access::Open).map_err(|_| not_running())?;
         let control = new_control_client(&control_service).map_err(ConnectError::Ipc)?;
@@ -276,6 +279,33 @@ pub(crate) fn server_node(config: &Config, name: &str) -> Option<u128> {
         CallbackProgression::Continue
     });
     found
+}
+
+/// Longest wait for a server whose node is alive to bring its ports up (it cleans up
+/// what dead nodes left first, which a long churn makes slow).
+const SERVER_UP_WAIT: Duration = Duration::from_secs(10);
+
+/// Wait until the server with node id `server` has its ports up (its
+/// [`ServiceNames::server_up`] service exists); false if it died or took longer than
+/// [`SERVER_UP_WAIT`]. A request sent before would reach no server port and never be
+/// answered: seen after a restart in the soak, where the bystander's first attach to
+/// the new server waited 120 s with no trace in the server's log.
+fn server_is_up(config: &Config, names: &ServiceNames, server: u128) -> bool {
+    let Ok(up) = ServiceName::new(&names.server_up(server)) else {
+        return false;
+    };
+    let started = Instant::now();
+    loop {
+        let exists = ipc_threadsafe::Service::does_exist(&up, config, MessagingPattern::Event)
+            .unwrap_or(false);
+        if exists {
+            return true;
+        }
+        if started.elapsed() > SERVER_UP_WAIT || !node_alive(config, server) {
+            return false;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
 }
 
 /// `echogym-serve-<name>-<pid>` exactly (so `a` does not match server `a-b`).

@@ -4,6 +4,8 @@
 //! ```text
 //! echogym/<name>/control                 request-response, JSON control messages
 //! echogym/<name>/wake                    event, clients → server ("work is waiting")
+//! echogym/<name>/up/<server node id>      event, created last by a server whose ports
+//!                                         are up ("this server answers requests")
 //! echogym/<name>/lease/<id>/action       publish-subscribe, client → server
 //! echogym/<name>/lease/<id>/obs          publish-subscribe, server → client
 //! echogym/<name>/lease/<id>/ready        event, server → client ("obs is waiting")
@@ -52,6 +54,15 @@ impl ServiceNames {
         format!("echogym/{}/wake", self.server)
     }
 
+    /// The service a server creates once its control port and wake listener are up:
+    /// a client that reached the server's node waits for it, so a request never goes
+    /// to a restarted server's control service before its port exists (the request
+    /// would reach nobody and never be answered). Named by the node id, so what a
+    /// dead server of the same name left cannot stand in for it.
+    pub fn server_up(&self, server_node: u128) -> String {
+        format!("echogym/{}/up/{server_node:032x}", self.server)
+    }
+
     /// The action service of a lease.
     pub fn lease_action(&self, lease_id: u64) -> String {
         format!("echogym/{}/lease/{lease_id}/action", self.server)
@@ -77,6 +88,10 @@ mod tests {
         let names = ServiceNames::new("train-1").unwrap();
         assert_eq!(names.control(), "echogym/train-1/control");
         assert_eq!(names.wake(), "echogym/train-1/wake");
+        assert_eq!(
+            names.server_up(0xab),
+            "echogym/train-1/up/000000000000000000000000000000ab"
+        );
         assert_eq!(names.lease_action(7), "echogym/train-1/lease/7/action");
         assert_eq!(names.lease_obs(7), "echogym/train-1/lease/7/obs");
         assert_eq!(names.lease_ready(7), "echogym/train-1/lease/7/ready");

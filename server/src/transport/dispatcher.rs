@@ -138,6 +138,8 @@ pub struct Dispatcher {
     wake: Listener<Ipc>,
     _control_service: ControlService<Ipc>,
     _wake_service: EventService<Ipc>,
+    /// Says this server answers requests (see `ServiceNames::server_up`).
+    _up_service: EventService<Ipc>,
     pub(super) node: Node<Ipc>,
 }
 
@@ -316,13 +318,17 @@ impl Dispatcher {
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<Ipc>()
             .map_err(|e| StartError::Node(format!("{e:?}")))?;
-        let builder =
-            Builder::start(registry.clone(), builder_node, names).map_err(StartError::Builder)?;
+        let builder = Builder::start(registry.clone(), builder_node, names.clone())
+            .map_err(StartError::Builder)?;
         let instance = (std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.subsec_nanos())
             ^ std::process::id().rotate_left(16))
             & 0x7fff_ffff;
+        // Last: clients wait for this before their first request (see
+        // `ServiceNames::server_up`).
+        let up_name = names.server_up(node.id().value());
+        let up_service = event_service(&node, &up_name, 1, Access::Create)?;
         tracing::info!(
             name = %options.name,
             pid = std::process::id(),
@@ -359,6 +365,7 @@ impl Dispatcher {
             wake,
             _control_service: control_service,
             _wake_service: wake_service,
+            _up_service: up_service,
             node,
             options,
         })
