@@ -148,27 +148,26 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
     };
     let fig = Figures::of(o);
     let site_stiffness = site_stiffness(o);
-    let interval_of = |key: &str| {
+    // Every fitted parameter of the effect, under its name in the fit (a site's scale is
+    // `scale.<site>`, inside `spring_scale_by_site` in the params).
+    let intervals_of = |effect: &str| -> serde_json::Map<String, serde_json::Value> {
+        let prefix = format!("{effect}.");
         o.calibrated_fit
             .estimates
             .iter()
-            .find(|e| e.name == key)
-            .map(|e| e.interval)
+            .filter_map(|e| {
+                e.name
+                    .strip_prefix(&prefix)
+                    .map(|k| (k.to_string(), serde_json::json!(e.interval)))
+            })
+            .collect()
     };
     let effects: Vec<serde_json::Value> = o
         .accepted
         .iter()
         .map(|a| {
             let params = calibrated_params(o, a.name, &site_stiffness);
-            let intervals: serde_json::Map<String, serde_json::Value> = params
-                .as_object()
-                .into_iter()
-                .flatten()
-                .filter_map(|(k, _)| {
-                    interval_of(&format!("{}.{k}", a.name))
-                        .map(|i| (k.clone(), serde_json::json!(i)))
-                })
-                .collect();
+            let intervals = intervals_of(a.name);
             serde_json::json!({
                 "name": a.name,
                 "params": params,
