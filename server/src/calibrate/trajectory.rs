@@ -4,7 +4,8 @@
 //! smoothed by a local quartic (σ = [`SMOOTHING_S`], 5 Hz kept to 0.1 %). Otherwise the
 //! positions are smoothed by a local quadratic (σ = [`POSITION_ONLY_S`] vertically,
 //! [`LATERAL_POSITION_ONLY_S`] sideways) and the velocity is that fit's slope. A
-//! sideways rate within [`HOLD_SIGMAS`] of its own noise is a hold, and set to zero. Timestamps need not be evenly spaced.
+//! sideways rate within 4 σ of its own noise is a hold, and set to zero (skin friction
+//! must not see the noise's direction). Timestamps need not be evenly spaced.
 //!
 //! Encoder noise of a few tens of micrometres is harmless as a position but not as a
 //! rate. The replayed skin follows the probe, so the tissue's damping sees the rate of
