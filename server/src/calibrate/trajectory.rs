@@ -314,6 +314,19 @@ fn solve(mut a: Vec<f64>, mut b: Vec<f64>, m: usize) -> Option<Vec<f64>> {
 mod tests {
     use super::*;
 
+    /// A recording of positions `p` at times `t`, without velocity columns.
+    fn positions_only(t: &[f64], p: Vec<[f64; 3]>) -> Recording {
+        let n = t.len();
+        Recording {
+            v: vec![[0.0; 3]; n],
+            f: vec![[0.0; 3]; n],
+            torque: None,
+            velocity_measured: false,
+            p,
+            t: t.to_vec(),
+        }
+    }
+
     #[test]
     fn keeps_a_five_hz_motion_and_drops_encoder_noise() {
         let n = 2000;
@@ -329,14 +342,7 @@ mod tests {
             .iter()
             .map(|&t| [0.0, 0.0, truth(t) + 5e-5 * jitter()])
             .collect();
-        let rec = Recording {
-            v: vec![[0.0; 3]; n],
-            f: vec![[0.0; 3]; n],
-            torque: None,
-            velocity_measured: false,
-            p,
-            t: t.clone(),
-        };
+        let rec = positions_only(&t, p);
         let smooth = smoothed(&rec);
         let (mut pe, mut ve) = (0.0f64, 0.0f64);
         for ((p, v), &t) in smooth
@@ -405,16 +411,11 @@ mod tests {
         let t: Vec<f64> = (0..n).map(|k| k as f64 * 0.01).collect();
         // Held for 5 s, then sliding along y at 18 mm/s.
         let truth = |t: f64| 0.018 * (t - 5.0).max(0.0);
-        let rec = Recording {
-            p: t.iter()
-                .map(|&t| [4.8e-5 * noise(), truth(t) + 4.8e-5 * noise(), 0.9])
-                .collect(),
-            v: vec![[0.0; 3]; n],
-            f: vec![[0.0; 3]; n],
-            torque: None,
-            velocity_measured: false,
-            t: t.clone(),
-        };
+        let p = t
+            .iter()
+            .map(|&t| [4.8e-5 * noise(), truth(t) + 4.8e-5 * noise(), 0.9])
+            .collect();
+        let rec = positions_only(&t, p);
         let smooth = smoothed(&rec);
         let rms = |range: std::ops::Range<usize>, axis: usize, rate: f64| {
             let sum: f64 = smooth.v[range.clone()]
