@@ -81,7 +81,8 @@ pub struct Connection {
 }
 
 impl Connection {
-    /// Attach to the running server named `options.name`.
+    /// Attach to the running server named `options.name`. A server still starting (its
+    /// node alive, its ports not yet up) is waited for, up to 10 s.
     pub fn connect(options: &ConnectOptions) -> Result<Self, ConnectError> {
         echogym_protocol::quiet_iceoryx_logs();
         let names = ServiceNames::new(&options.name)
