@@ -42,7 +42,7 @@ impl ShellLayout {
     /// `scale(x, y)` (a neighbour link by the mean of its ends, a ground link by its
     /// particle's), so a stiffer or softer patch of tissue is so in all its elastic
     /// elements and not only in its particles' own springs: with the springs alone a
-    /// patch could not soften below ≈ 0.65 of its neighbours' stiffness under the probe.
+    /// patch could not soften below ≈ 0.73 of its neighbours' stiffness under the probe.
     pub fn with_stiffness_field(mut self, scale: impl Fn([f64; 2]) -> f64) -> Self {
         let local: Vec<f64> = self.rest.iter().map(|p| scale([p[0], p[1]])).collect();
         for (i, j, w) in &mut self.edges {
