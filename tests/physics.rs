@@ -280,6 +280,44 @@ fn osc_reaches_a_5_cm_target_within_1_s_without_overshoot() {
     }
 }
 
+/// The controllers read the arm's Jacobians and mass matrix as rapier left them after a
+/// step instead of recomputing forward kinematics (`Scene::arm_kinematics`); this holds
+/// only while rapier's step ends with the kinematics current, which a rapier upgrade could
+/// change.
+#[test]
+fn the_arms_cached_kinematics_are_current_after_every_step() {
+    for robot in [RobotKind::Panda, RobotKind::Ur5e] {
+        let mut scene = scene(robot, true);
+        let mut osc = Osc::new(OscParams::default(), &scene);
+        osc.set_goal_delta(&scene, [0.02, 0.03, -0.15, 0.0, 0.3, 0.0]);
+        for step in 0..300 {
+            let tau = osc.torques(&mut scene);
+            scene.step(&tau);
+            let t = scene.tip_pose().translation;
+            let tip = [t.x as f64, t.y as f64, t.z as f64];
+            let arm = scene.arm();
+            let cached = (
+                arm.point_jacobian(scene.world(), tip),
+                arm.mass_matrix(scene.world()),
+            );
+            let mut refreshed = scene.world().clone();
+            arm.update_kinematics(&mut refreshed);
+            let fresh = (
+                arm.point_jacobian(&refreshed, tip),
+                arm.mass_matrix(&refreshed),
+            );
+            assert_eq!(cached, fresh, "{robot:?}, step {step}");
+        }
+        // A heavier probe moves the last link's centre of mass: the next read refreshes.
+        scene.set_probe_mass(1.5);
+        let (arm, world) = scene.arm_kinematics();
+        let read = arm.mass_matrix(world);
+        let mut refreshed = world.clone();
+        arm.update_kinematics(&mut refreshed);
+        assert_eq!(read, arm.mass_matrix(&refreshed), "{robot:?} after a mass change");
+    }
+}
+
 fn rollout(scene: &mut Scene, steps: usize) -> Vec<f64> {
     let mut osc = Osc::new(OscParams::default(), scene);
     osc.set_goal_delta(scene, [0.02, 0.03, -0.15, 0.0, 0.0, 0.0]);

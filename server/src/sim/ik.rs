@@ -1,7 +1,7 @@
 //! Inverse kinematics of the probe tip: damped least squares on the tip Jacobian, with
 //! joint limits, for placing the arm at an episode's starting pose (no physics runs).
 
-use rapier3d::na::{DMatrix, DVector};
+use rapier3d::na::{Matrix6, Vector6};
 use rapier3d::prelude::*;
 
 use super::scene::Scene;
@@ -43,21 +43,21 @@ pub fn solve_tip_pose(
         let tip = scene.tip_pose();
         let p = arr3(tip.translation);
         let rot_err = (rotation * tip.rotation.inverse()).to_scaled_axis();
-        let e = DVector::from_vec(vec![
+        let e = Vector6::new(
             position[0] - p[0],
             position[1] - p[1],
             position[2] - p[2],
             rot_err.x as f64,
             rot_err.y as f64,
             rot_err.z as f64,
-        ]);
+        );
         errors = (e.fixed_rows::<3>(0).norm(), e.fixed_rows::<3>(3).norm());
         if errors.0 < 1e-4 && errors.1 < 1e-3 {
             return Ok(q);
         }
         let (arm, world) = scene.arm_kinematics();
         let j = arm.point_jacobian(world, p);
-        let jjt = &j * j.transpose() + DMatrix::identity(6, 6) * (DAMPING * DAMPING);
+        let jjt = &j * j.transpose() + Matrix6::identity() * (DAMPING * DAMPING);
         let Some(step) = jjt.lu().solve(&e) else {
             break;
         };

@@ -86,12 +86,12 @@ impl HybridForceMotion {
 
         // Motion part: the OSC task force with its axial component removed.
         let TaskTerms { task, lambda, j, g } = self.motion.task_terms(scene);
-        let mut selected = task.clone();
+        let mut selected = task;
         let lin = select_motion * Vector3::new(task[0], task[1], task[2]);
         selected[0] = lin.x;
         selected[1] = lin.y;
         selected[2] = lin.z;
-        let mut wrench = &lambda * selected;
+        let mut wrench = lambda * selected;
 
         // Force part along the axis, with damping of the axial velocity.
         let (arm, world) = scene.arm_kinematics();

@@ -11,7 +11,7 @@
 //! the model; both are solved implicitly by rapier.
 
 use rapier3d::glamx::EulerRot;
-use rapier3d::na::{DMatrix, DVector, Vector3};
+use rapier3d::na::{DMatrix, DVector, Matrix3, Matrix6xX, Vector3};
 use rapier3d::prelude::*;
 
 use super::model::{JointSpec, RobotModel};
@@ -320,37 +320,37 @@ impl Arm {
 
     /// Jacobian (6 × dof, rows `[linear; angular]`, world frame) of the point `point`
     /// [m, world] rigidly attached to the last link.
-    pub fn point_jacobian(&self, world: &World, point: [f64; 3]) -> DMatrix<f64> {
+    pub fn point_jacobian(&self, world: &World, point: [f64; 3]) -> Matrix6xX<f64> {
         let (mb, _) = world.sets.multibody_joints.get(self.handle).expect("arm");
         let last = *self.link_ids.last().expect("links");
         let body_j = mb.body_jacobian(last);
         let com = world.sets.bodies[self.last_link()].center_of_mass();
-        let r = vec3(point) - com;
-        let mut j = self.columns(mb, body_j);
-        for c in 0..j.ncols() {
-            let w = Vector3::new(j[(3, c)], j[(4, c)], j[(5, c)]);
-            let lin = Vector3::new(j[(0, c)], j[(1, c)], j[(2, c)])
-                + w.cross(&Vector3::new(r.x as f64, r.y as f64, r.z as f64));
-            j[(0, c)] = lin.x;
-            j[(1, c)] = lin.y;
-            j[(2, c)] = lin.z;
+        let r = Vector3::new(
+            point[0] - com.x as f64,
+            point[1] - com.y as f64,
+            point[2] - com.z as f64,
+        );
+        let mut j = Matrix6xX::zeros(self.dof());
+        for k in 0..self.dof() {
+            let c = self.column(mb, body_j, k);
+            let angular = Vector3::new(c[3], c[4], c[5]);
+            let linear = Vector3::new(c[0], c[1], c[2]) + angular.cross(&r);
+            j.fixed_view_mut::<3, 1>(0, k).copy_from(&linear);
+            j.fixed_view_mut::<3, 1>(3, k).copy_from(&angular);
         }
         j
     }
 
-    /// The body Jacobian's columns reordered to joint order, in f64.
-    fn columns(&self, mb: &Multibody, body_j: &rapier3d::na::Matrix6xX<Real>) -> DMatrix<f64> {
-        let mut out = DMatrix::zeros(6, self.dof());
-        for (k, &id) in self.link_ids.iter().enumerate() {
-            let dof = mb.link(id).expect("link").assembly_id();
-            for row in 0..6 {
-                out[(row, k)] = body_j[(row, dof)] as f64;
-            }
-        }
-        out
+    /// Column `k` (joint order) of a link's body Jacobian, which rapier stores in
+    /// assembly order, in f64.
+    fn column(&self, mb: &Multibody, body_j: &rapier3d::na::Matrix6xX<Real>, k: usize) -> [f64; 6] {
+        let dof = mb.link(self.link_ids[k]).expect("link").assembly_id();
+        std::array::from_fn(|row| body_j[(row, dof)] as f64)
     }
 
-    /// Joint-space mass matrix `M(q)` (dof × dof).
+    /// Joint-space mass matrix `M(q)` (dof × dof), summed link by link with plain loops:
+    /// the matrices are at most 7 × 7, where general matrix products cost more in
+    /// call overhead than in arithmetic.
     pub fn mass_matrix(&self, world: &World) -> DMatrix<f64> {
         let (mb, _) = world.sets.multibody_joints.get(self.handle).expect("arm");
         let n = self.dof();
@@ -363,22 +363,24 @@ impl Arm {
             } else {
                 0.0
             };
-            let local = props.reconstruct_inertia_matrix();
             let rot = Matrix::from_quat(body.position().rotation);
-            let world_inertia = rot * local * rot.transpose();
-            let j = self.columns(mb, mb.body_jacobian(id));
-            let mut weighted = j.clone();
-            for c in 0..n {
-                for r in 0..3 {
-                    weighted[(r, c)] *= mass;
+            let inertia = rot * props.reconstruct_inertia_matrix() * rot.transpose();
+            let inertia = Matrix3::from_fn(|r, c| inertia.col(c)[r] as f64);
+            let body_j = mb.body_jacobian(id);
+            let columns: Vec<[f64; 6]> = (0..n).map(|a| self.column(mb, body_j, a)).collect();
+            for (a, ca) in columns.iter().enumerate() {
+                let iwa = inertia * Vector3::new(ca[3], ca[4], ca[5]);
+                for (b, cb) in columns[..=a].iter().enumerate() {
+                    let linear = ca[0] * cb[0] + ca[1] * cb[1] + ca[2] * cb[2];
+                    let angular = iwa.x * cb[3] + iwa.y * cb[4] + iwa.z * cb[5];
+                    m[(a, b)] += mass * linear + angular;
                 }
-                let w = Vector::new(j[(3, c)] as Real, j[(4, c)] as Real, j[(5, c)] as Real);
-                let iw = world_inertia * w;
-                weighted[(3, c)] = iw.x as f64;
-                weighted[(4, c)] = iw.y as f64;
-                weighted[(5, c)] = iw.z as f64;
             }
-            m += j.transpose() * weighted;
+        }
+        for a in 0..n {
+            for b in 0..a {
+                m[(b, a)] = m[(a, b)];
+            }
         }
         m
     }
@@ -389,11 +391,11 @@ impl Arm {
         let (mb, _) = world.sets.multibody_joints.get(self.handle).expect("arm");
         let mut tau = DVector::zeros(self.dof());
         for (k, &id) in self.link_ids.iter().enumerate() {
-            let body = &world.sets.bodies[self.links[k]];
-            let mass = body.mass() as f64;
-            let j = self.columns(mb, mb.body_jacobian(id));
-            for c in 0..self.dof() {
-                tau[c] -= mass * (j[(0, c)] * g[0] + j[(1, c)] * g[1] + j[(2, c)] * g[2]);
+            let mass = world.sets.bodies[self.links[k]].mass() as f64;
+            let body_j = mb.body_jacobian(id);
+            for (c, t) in tau.iter_mut().enumerate() {
+                let col = self.column(mb, body_j, c);
+                *t -= mass * (col[0] * g[0] + col[1] * g[1] + col[2] * g[2]);
             }
         }
         tau
