@@ -314,7 +314,11 @@ fn the_arms_cached_kinematics_are_current_after_every_step() {
         let read = arm.mass_matrix(world);
         let mut refreshed = world.clone();
         arm.update_kinematics(&mut refreshed);
-        assert_eq!(read, arm.mass_matrix(&refreshed), "{robot:?} after a mass change");
+        assert_eq!(
+            read,
+            arm.mass_matrix(&refreshed),
+            "{robot:?} after a mass change"
+        );
     }
 }
 

@@ -46,6 +46,7 @@ pub fn setup(dataset: &Dataset) -> Result<Setup, CalibrateError> {
             .collect(),
         recording_sites: meta.recordings.iter().map(|e| e.site.clone()).collect(),
         session: SessionClock::of(dataset),
+        approaches: dataset.recordings.iter().map(onset::approaches).collect(),
     })
 }
 

@@ -40,6 +40,14 @@ pub const MIN_FREE_AIR_S: f64 = 0.2;
 /// The surface height [m, world z] under `rec`'s probe at its contact onsets, if it
 /// approached from free air at least once.
 pub fn surface_z(rec: &Recording) -> Option<f64> {
+    let onsets: Vec<f64> = approaches(rec).iter().map(|a| a.1).collect();
+    (!onsets.is_empty()).then(|| median(onsets))
+}
+
+/// Each approach from free air in `rec`: (time \[s\], surface height [m, world z]) at
+/// its contact onset. The time lets a model that moves the surface (breathing) say
+/// where the skin was at that moment.
+pub fn approaches(rec: &Recording) -> Vec<(f64, f64)> {
     let n = rec.len();
     let t0 = rec.t[0];
     let head: Vec<f64> = (0..n)
@@ -47,7 +55,7 @@ pub fn surface_z(rec: &Recording) -> Option<f64> {
         .map(|i| rec.f[i][2])
         .collect();
     if head.len() < MIN_BAND_SAMPLES {
-        return None;
+        return Vec::new();
     }
     let level = median(head.clone());
     let spread = median(head.iter().map(|f| (f - level).abs()).collect()) / 0.6745;
@@ -85,7 +93,7 @@ pub fn surface_z(rec: &Recording) -> Option<f64> {
                 && let Some(z) = extrapolated_onset(rec, &band, level)
                 && highest >= z
             {
-                onsets.push(z);
+                onsets.push((rec.t[start], z));
             }
             i = end;
         }
@@ -95,7 +103,7 @@ pub fn surface_z(rec: &Recording) -> Option<f64> {
         }
         free_from = i.min(n - 1);
     }
-    (!onsets.is_empty()).then(|| median(onsets))
+    onsets
 }
 
 /// Line `f = a + b·z` through the band's samples, solved for `f = level`; `None` unless
@@ -117,7 +125,7 @@ fn extrapolated_onset(rec: &Recording, band: &[usize], level: f64) -> Option<f64
     (b < 0.0).then(|| zm + (level - fm) / b)
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
+pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
 }

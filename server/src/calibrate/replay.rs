@@ -12,12 +12,13 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::geometry::{self, PathSurface, SiteSurface};
+use super::onset::median;
 use super::session::SessionClock;
 use crate::recordings::Recording;
 use crate::sim::ft_sensor::low_pass_alpha;
 use crate::sim::torso::{
     Breathing, BreathingParams, DepthDamping, ProbeFace, ProbeKinematics, Relaxation,
-    SiteStiffness, Torso, TorsoParams,
+    SiteStiffness, Torso, TorsoParams, rise_profile,
 };
 
 /// Simulation step of replays \[s\].
@@ -62,6 +63,11 @@ pub struct Model {
     /// the recording; empty: steady).
     #[serde(default)]
     pub breathing_rate_slope: Vec<f64>,
+    /// Each recording's breathing phase correction: `(s since its first sample, rad)`
+    /// knots, linear between them (breaths of unequal length; see
+    /// `Breathing::with_phase_track`).
+    #[serde(default)]
+    pub breathing_phase_track: Vec<Vec<(f64, f64)>>,
     /// Tissue mass moving with the probe \[kg\].
     pub moving_mass: f64,
     /// Constant force offset of the sensor, world z \[N\].
@@ -113,6 +119,7 @@ impl Model {
             breathing_phase: Vec::new(),
             breathing_freq: Vec::new(),
             breathing_rate_slope: Vec::new(),
+            breathing_phase_track: Vec::new(),
             breathing_edge_rise: 0.0,
             moving_mass: 0.0,
             bias: 0.0,
@@ -162,6 +169,9 @@ pub struct Setup {
     pub recording_sites: Vec<String>,
     /// When each recording was made on the session's clock.
     pub session: SessionClock,
+    /// Each recording's approaches from free air: (time \[s\], skin height [m, world
+    /// z]) at contact onset (see `onset::approaches`), by recording index.
+    pub approaches: Vec<Vec<(f64, f64)>>,
 }
 
 impl Setup {
@@ -278,6 +288,43 @@ fn surface_of<'a>(
     move |xy, v| geometry::shift(site_surface, path, xy, v)
 }
 
+/// How far breathing had lifted the skin where `recording` measured it, when its surface
+/// comes from its own contact onsets \[m\]: the breathing torso's top rests fully
+/// exhaled and rises by the law's offset, so the skin found at an onset is the rest
+/// surface plus the rise at that moment. Median over the approaches, as the onset
+/// height is (0 for a surface fitted rather than measured, which the fit already put
+/// where the force says).
+fn onset_breath_shift(
+    setup: &Setup,
+    model: &Model,
+    recording: &Recording,
+    index: usize,
+    law: &Breathing,
+    torso: &TorsoParams,
+) -> f64 {
+    let from_onset = model
+        .paths
+        .iter()
+        .any(|p| p.recording == index && p.height_source == geometry::Source::Onset);
+    let approaches = setup.approaches.get(index).map_or(&[][..], Vec::as_slice);
+    if !from_onset || approaches.is_empty() {
+        return 0.0;
+    }
+    let half = [torso.size[0] / 2.0, torso.size[1] / 2.0];
+    let t0 = recording.t[0];
+    let heights: Vec<f64> = approaches.iter().map(|a| a.1).collect();
+    let rest: Vec<f64> = approaches
+        .iter()
+        .map(|&(t, z)| {
+            let p = interp3(&recording.t, &recording.p, t);
+            let xy = [p[0] - torso.center_xy[0], p[1] - torso.center_xy[1]];
+            let rise = law.offset_after(t - t0) * rise_profile(xy, half, law.params().edge_rise);
+            z - rise
+        })
+        .collect();
+    median(heights) - median(rest)
+}
+
 /// The body part of a replay (see [`BodyReplay`]).
 pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -> BodyReplay {
     let params = setup.torso_params(model);
@@ -292,6 +339,7 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
         };
     };
     let breathing = model.breathing.is_some();
+    let mut breath_shift = 0.0;
     if let Some((common_freq, amplitude)) = model.breathing {
         let phase = model.breathing_phase.get(index).copied().unwrap_or(0.0);
         // Each recording breathes at its own rate (the rate drifts between recordings).
@@ -316,8 +364,13 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
             &torso,
             0,
         )
-        .map(|law| law.with_rate_slope(slope));
+        .map(|law| {
+            let track = model.breathing_phase_track.get(index).cloned();
+            law.with_rate_slope(slope)
+                .with_phase_track(track.unwrap_or_default())
+        });
         if let Ok(law) = law {
+            breath_shift = onset_breath_shift(setup, model, recording, index, &law, &params);
             let u = law.equilibrium();
             torso.set_state(&u, &vec![0.0; u.len()]);
             torso.add_law(Box::new(law));
@@ -340,7 +393,7 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
         let mut v = interp3(&recording.t, &recording.v, t);
         // The skin here stands `z` above the flat torso's top: shift the probe down.
         let (z, dz) = surface([p[0], p[1]], v);
-        p[2] -= z;
+        p[2] -= z - breath_shift;
         v[2] -= dz;
         let clear = p[2] + REPLAY_DT * v[2].min(0.0) > top + 0.002;
         let (f, contact) = if clear && at_rest && model.moving_mass == 0.0 {
@@ -552,6 +605,7 @@ mod tests {
             sites: Vec::new(),
             recording_sites: Vec::new(),
             session: SessionClock::default(),
+            approaches: Vec::new(),
             torso,
         };
         let model = Model::baseline(1324.17, 17.59, 0.0);

@@ -191,7 +191,8 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
             "rule": "whole recordings (seeded): train fits every parameter; validation chooses and gates effects; test is used for nothing but the before/after. A protocol with 3+ recordings gives one to validation and one to test, a protocol with 2 gives its held-out one to validation (every excitation where effects are chosen); never a site's last training recording",
             "protocols_not_in_test": super::split::untested_protocols(&o.dataset, &o.split),
             "fitted_on_heldout": {
-                "breathing_phase_and_rate": "per recording (a nuisance state of each recording)",
+                "breathing_phase_rate_and_track": "per recording (a nuisance state of each recording), its phase followed breath by breath",
+                "surface_at_contact_onset": "per recording, from its own approaches from free air (less the modelled breathing rise at those moments)",
                 "surface_without_training_recordings": o.surface_from_heldout,
             },
         },

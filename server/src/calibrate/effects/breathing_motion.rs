@@ -1,8 +1,9 @@
 //! `breathing_motion`: the body's surface rises and falls with breathing. Signature:
 //! per recording a sinusoid (phase, rate within ±15 % of the common rate, a linear rate
-//! change) while touching, 0.12–0.54 Hz; the amplitude from a rise profile over the top
-//! (a dome to a top rising as one). Element: the breathing law driving the torso's top
-//! (`breathing`, `edge_rise`).
+//! change) while touching, 0.12–0.54 Hz, whose phase then follows the recording breath
+//! by breath (see [`track_phase`]); the amplitude from a rise profile over the top (a
+//! dome to a top rising as one). Element: the breathing law driving the torso's top
+//! (`breathing`, `edge_rise`, the phase tracks).
 //!
 //! Specificity: breathing moves the surface, so the force oscillates where the probe
 //! holds its depth; the sinusoids must explain ≥ 25 % of the residual's variation
@@ -13,7 +14,7 @@ use super::linear::*;
 use super::{Base, Effect, Parameter, Params, Readjust, ReportContext, Signature, number};
 use crate::calibrate::features::Series;
 use crate::calibrate::replay::{Model, Setup};
-use crate::sim::torso::rise_profile;
+use crate::sim::torso::{rise_profile, track_at};
 
 const NAME: &str = "breathing_motion";
 
@@ -41,6 +42,10 @@ impl Effect for BreathingMotion {
         model.breathing_phase = list("phase_rad");
         model.breathing_freq = list("freq_by_recording_hz");
         model.breathing_rate_slope = list("rate_slope_by_recording_hz_s");
+        model.breathing_phase_track = params
+            .get("phase_track_by_recording")
+            .and_then(|v| serde_json::from_value(v.clone()).ok())
+            .unwrap_or_default();
         model.breathing_edge_rise = number(params, "edge_rise");
     }
 
@@ -103,7 +108,7 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
             .zip(&rest)
             .zip(train)
             .filter(|(_, t)| **t)
-            .map(|((s, r), _)| breathing_fit(s, r, Chirp::steady(f, s.t[0])).0)
+            .map(|((s, r), _)| breathing_fit(s, r, &Chirp::steady(f, s.t[0]).phase_fn()).0)
             .sum();
         if sse < best.0 {
             best = (sse, f);
@@ -116,7 +121,8 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
     // Each recording: its own rate (±15 % of the common one) and a rate that may
     // change linearly across it (a drifting rate, ±12 % over the recording),
     // refined coordinate-wise.
-    let per: Vec<(Chirp, f64, f64)> = series
+    type Tracked = (Chirp, f64, f64, Vec<(f64, f64)>);
+    let per: Vec<Tracked> = series
         .iter()
         .zip(&rest)
         .map(|(s, r)| {
@@ -124,7 +130,7 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
             let span = (s.t[s.len() - 1] - t_ref).max(1.0);
             let mut best = (f64::INFINITY, Chirp::steady(f, t_ref), 0.0, 0.0);
             let consider = |best: &mut (f64, Chirp, f64, f64), chirp: Chirp| {
-                let (sse, a, c) = breathing_fit(s, r, chirp);
+                let (sse, a, c) = breathing_fit(s, r, &chirp.phase_fn());
                 if sse < best.0 {
                     *best = (sse, chirp, a, c);
                 }
@@ -147,7 +153,10 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
                     consider(&mut best, Chirp::steady(freq, t_ref).with_slope(slope));
                 }
             }
-            (best.1, best.2, best.3)
+            // Then the phase breath by breath, and the amplitude again with it.
+            let chirp = best.1;
+            let (a, c, track) = follow_breaths(s, r, chirp, (best.2, best.3));
+            (chirp, a, c, track)
         })
         .collect();
     // The rise differs across the top (a dome, or a top rising as one): each
@@ -163,7 +172,7 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
         .zip(series)
         .zip(train)
         .filter(|(_, t)| **t)
-        .map(|((&(_, a, c), s), _)| (2.0 * a.hypot(c) / k_eff, s))
+        .map(|((&(_, a, c, _), s), _)| (2.0 * a.hypot(c) / k_eff, s))
         .collect();
     // From a top rising as one down to a dome: where the sites cannot tell the
     // profiles apart (one site, or sites equally far from the centre), the flat
@@ -188,12 +197,14 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
     let mut phases = Vec::new();
     let mut freqs = Vec::new();
     let mut slopes = Vec::new();
+    let mut tracks = Vec::new();
     let predicted: Vec<Vec<f64>> = series
         .iter()
         .zip(&per)
         .zip(&base)
         .enumerate()
-        .map(|(k, ((s, &(chirp, a, c)), b))| {
+        .map(|(k, ((s, (chirp, a, c, track)), b))| {
+            let (chirp, a, c) = (*chirp, *a, *c);
             // Held-out recordings keep only their phase and rate: the amplitude is
             // the profile's.
             let norm = a.hypot(c).max(1e-12);
@@ -210,11 +221,12 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
             phases.push(a.atan2(-c) + chirp.phase(s.t[0]));
             freqs.push(chirp.freq);
             slopes.push(chirp.slope);
+            tracks.push(track.clone());
             s.t.iter()
                 .zip(&s.contact)
                 .zip(b)
                 .map(|((&t, &on), b)| {
-                    let phase = chirp.phase(t);
+                    let phase = chirp.phase(t) + track_at(track, t - s.t[0]);
                     b + if on {
                         a * phase.sin() + c * phase.cos()
                     } else {
@@ -244,6 +256,7 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
         "rate_slope_by_recording_hz_s".into(),
         serde_json::json!(slopes),
     );
+    params.insert("phase_track_by_recording".into(), serde_json::json!(tracks));
     Some(Signature {
         name: NAME,
         params,
@@ -287,14 +300,14 @@ fn steady_share_explained(
 /// depth-dependent effects (a nonlinear spring, relaxation's level) cannot inflate it;
 /// over all in-contact samples when the series has under 2 s of steady stretches (a
 /// chirp).
-fn breathing_fit(s: &Series, residual: &[f64], chirp: Chirp) -> (f64, f64, f64) {
+fn breathing_fit(s: &Series, residual: &[f64], phase: &dyn Fn(f64) -> f64) -> (f64, f64, f64) {
     let stretches = steady_stretches(s);
     let steady_s: f64 = stretches
         .iter()
         .map(|r| s.t[r.end - 1] - s.t[r.start])
         .sum();
     if steady_s < 2.0 {
-        let (sse, a, b, _) = sinusoid_fit(s, residual, chirp);
+        let (sse, a, b, _) = sinusoid_fit(s, residual, phase);
         return (sse, a, b);
     }
     let n = s.len();
@@ -304,7 +317,7 @@ fn breathing_fit(s: &Series, residual: &[f64], chirp: Chirp) -> (f64, f64, f64) 
         let mut offset = vec![0.0; n];
         for i in r.clone() {
             rows[i] = true;
-            let phase = chirp.phase(s.t[i]);
+            let phase = phase(s.t[i]);
             columns[0][i] = phase.sin();
             columns[1][i] = phase.cos();
             offset[i] = 1.0;
@@ -353,21 +366,30 @@ impl Chirp {
         let tau = t - self.t_ref;
         std::f64::consts::TAU * (self.freq * tau + 0.5 * self.slope * tau * tau)
     }
+
+    /// [`Chirp::phase`] as a closure.
+    fn phase_fn(self) -> impl Fn(f64) -> f64 {
+        move |t| self.phase(t)
+    }
 }
 
-/// Fit `a·sin φ + b·cos φ` (φ the chirp's phase) to the in-contact part of `residual`
+/// Fit `a·sin φ + b·cos φ` (φ = `phase(t)`) to the in-contact part of `residual`
 /// (one series): (SSE, a, b, prediction).
-fn sinusoid_fit(s: &Series, residual: &[f64], chirp: Chirp) -> (f64, f64, f64, Vec<f64>) {
+fn sinusoid_fit(
+    s: &Series,
+    residual: &[f64],
+    phase: &dyn Fn(f64) -> f64,
+) -> (f64, f64, f64, Vec<f64>) {
     let mask = contact_mask(s);
     let sin: Vec<f64> =
         s.t.iter()
             .zip(&mask)
-            .map(|(&t, m)| m * chirp.phase(t).sin())
+            .map(|(&t, m)| m * phase(t).sin())
             .collect();
     let cos: Vec<f64> =
         s.t.iter()
             .zip(&mask)
-            .map(|(&t, m)| m * chirp.phase(t).cos())
+            .map(|(&t, m)| m * phase(t).cos())
             .collect();
     let rows = vec![true; s.len()];
     let beta = least_squares(&[sin.clone(), cos.clone()], residual, &rows);
@@ -380,4 +402,211 @@ fn sinusoid_fit(s: &Series, residual: &[f64], chirp: Chirp) -> (f64, f64, f64, V
         .map(|(r, p)| (r - p).powi(2))
         .sum();
     (sse, beta[0], beta[1], pred)
+}
+
+/// The chirp's phase followed breath by breath ([`track_phase`] twice: the second pass
+/// refines around the first) and the oscillation `(a, c)` refitted with it.
+fn follow_breaths(
+    s: &Series,
+    residual: &[f64],
+    chirp: Chirp,
+    (mut a, mut c): (f64, f64),
+) -> (f64, f64, Vec<(f64, f64)>) {
+    let t_ref = s.t[0];
+    let mut track: Vec<(f64, f64)> = Vec::new();
+    for _ in 0..2 {
+        let phase = |t: f64| chirp.phase(t) + track_at(&track, t - t_ref);
+        let step = track_phase(s, residual, &phase, (a, c), 1.0 / chirp.freq);
+        if step.is_empty() {
+            break;
+        }
+        track = step
+            .iter()
+            .map(|&(tau, d)| (tau, d + track_at(&track, tau)))
+            .collect();
+        let phase = |t: f64| chirp.phase(t) + track_at(&track, t - t_ref);
+        (_, a, c) = breathing_fit(s, residual, &phase);
+    }
+    (a, c, track)
+}
+
+/// Spacing of the phase track's knots and half-width of the local fit at each, in
+/// breathing periods: a knot every half breath, each fitted over a breath and a half.
+const TRACK_SPACING_PERIODS: f64 = 0.5;
+const TRACK_WINDOW_PERIODS: f64 = 0.75;
+/// A local fit counts only with at least this many periods of fitted samples in its
+/// window ...
+const TRACK_MIN_PERIODS: f64 = 0.75;
+/// ... and an amplitude within this factor of the recording's: a real breath keeps its
+/// depth from one breath to the next, a sinusoid fitted to noise or to another effect's
+/// residual does not.
+const TRACK_AMPLITUDE_FACTOR: f64 = 2.0;
+
+/// A recording's breathing phase breath by breath: the correction `(s since the first
+/// sample, rad)` to `phase` at knots half a breath apart.
+///
+/// Breaths are not equally long (breath-to-breath variability of 5–10 % is normal at
+/// rest), so within a few breaths a steady or linearly drifting rate is a radian off. At
+/// each knot the oscillation `a·sin φ + c·cos φ` is refitted on the samples within ±¾ of
+/// a period (the same rows and per-stretch offsets as [`breathing_fit`]); the shift of
+/// its phase from the recording's `(a, c)` is the correction there, unwrapped from knot to
+/// knot. Knots with too little data or an implausible amplitude are left out (the track
+/// interpolates over them); none at all gives an empty track.
+fn track_phase(
+    s: &Series,
+    residual: &[f64],
+    phase: &dyn Fn(f64) -> f64,
+    (a, c): (f64, f64),
+    period: f64,
+) -> Vec<(f64, f64)> {
+    let n = s.len();
+    let amplitude = a.hypot(c);
+    if n < 2 || amplitude <= 0.0 || !period.is_finite() {
+        return Vec::new();
+    }
+    let reference = c.atan2(a);
+    let stretches = steady_stretches(s);
+    let steady_s: f64 = stretches
+        .iter()
+        .map(|r| s.t[r.end - 1] - s.t[r.start])
+        .sum();
+    // The rows breathing_fit uses: steady stretches with their own offsets, or every
+    // in-contact sample when there are under 2 s of them.
+    let mut rows = vec![false; n];
+    let mut offsets = Vec::new();
+    if steady_s < 2.0 {
+        rows.clone_from(&s.contact);
+    } else {
+        for r in &stretches {
+            let mut offset = vec![0.0; n];
+            for i in r.clone() {
+                rows[i] = true;
+                offset[i] = 1.0;
+            }
+            offsets.push(offset);
+        }
+    }
+    let dt = (s.t[n - 1] - s.t[0]) / (n - 1) as f64;
+    let (sin, cos): (Vec<f64>, Vec<f64>) = s.t.iter().map(|&t| phase(t).sin_cos()).unzip();
+    let mut columns = vec![sin, cos];
+    columns.extend(offsets);
+    let mut knots: Vec<(f64, f64)> = Vec::new();
+    let mut tau = 0.0;
+    while s.t[0] + tau <= s.t[n - 1] {
+        let centre = s.t[0] + tau;
+        let half = TRACK_WINDOW_PERIODS * period;
+        let window: Vec<bool> = (0..n)
+            .map(|i| rows[i] && (s.t[i] - centre).abs() <= half)
+            .collect();
+        let covered = window.iter().filter(|w| **w).count() as f64 * dt;
+        if covered >= TRACK_MIN_PERIODS * period {
+            let beta = least_squares(&columns, residual, &window);
+            let local = beta[0].hypot(beta[1]);
+            let plausible = local >= amplitude / TRACK_AMPLITUDE_FACTOR
+                && local <= amplitude * TRACK_AMPLITUDE_FACTOR;
+            if plausible {
+                let shift = wrap(beta[1].atan2(beta[0]) - reference);
+                let unwrapped = match knots.last() {
+                    Some(&(_, previous)) => previous + wrap(shift - previous),
+                    None => shift,
+                };
+                knots.push((tau, unwrapped));
+            }
+        }
+        tau += TRACK_SPACING_PERIODS * period;
+    }
+    knots
+}
+
+/// `x` wrapped into (−π, π].
+fn wrap(x: f64) -> f64 {
+    let tau = std::f64::consts::TAU;
+    let w = x.rem_euclid(tau);
+    if w > std::f64::consts::PI { w - tau } else { w }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+    use rand_pcg::Pcg64Mcg;
+
+    /// 40 s held 6 mm deep (one steady stretch), 100 Hz.
+    fn held(t: Vec<f64>, residual: Vec<f64>) -> Series {
+        let n = t.len();
+        Series {
+            index: 0,
+            file: "held.csv".into(),
+            site: "center".into(),
+            site_index: 0,
+            protocol: "hold".into(),
+            measured: residual.clone(),
+            predicted: vec![0.0; n],
+            residual,
+            contact: vec![true; n],
+            depth: vec![0.006; n],
+            vz: vec![0.0; n],
+            lateral_speed: vec![0.0; n],
+            az: vec![0.0; n],
+            dt: 0.01,
+            measured_xy: vec![[0.0; 2]; n],
+            predicted_xy: vec![[0.0; 2]; n],
+            vxy: vec![[0.0; 2]; n],
+            session: vec![0.0; n],
+            xy: [0.0; 2],
+            t,
+        }
+    }
+
+    /// Breaths 10 % longer or shorter at random around 0.28 Hz: the steady rate's
+    /// sinusoid drifts off within a few breaths, the tracked phase follows.
+    #[test]
+    fn the_phase_track_follows_breaths_of_unequal_length() {
+        let mut rng = Pcg64Mcg::seed_from_u64(3);
+        let period = 1.0 / 0.28;
+        let mut bounds = vec![-0.4];
+        while *bounds.last().unwrap() < 41.0 {
+            let last = *bounds.last().unwrap();
+            bounds.push(last + period * (1.0 + rng.random_range(-0.1..0.1)));
+        }
+        let true_phase = |t: f64| {
+            let i = bounds.iter().rposition(|&b| b <= t).unwrap();
+            std::f64::consts::TAU * (i as f64 + (t - bounds[i]) / (bounds[i + 1] - bounds[i]))
+        };
+        let t: Vec<f64> = (0..4000).map(|i| i as f64 * 0.01).collect();
+        let residual: Vec<f64> = t
+            .iter()
+            .map(|&t| 3.0 * (1.0 - true_phase(t).cos()) / 2.0 + rng.random_range(-0.05..0.05))
+            .collect();
+        let s = held(t, residual.clone());
+        let chirp = Chirp::steady(0.28, 0.0);
+        let (steady_sse, a, c) = breathing_fit(&s, &residual, &chirp.phase_fn());
+        let (a, c, track) = follow_breaths(&s, &residual, chirp, (a, c));
+        let phase = |t: f64| chirp.phase(t) + track_at(&track, t);
+        let (tracked_sse, ..) = breathing_fit(&s, &residual, &phase);
+        assert!(
+            tracked_sse < 0.1 * steady_sse,
+            "SSE {steady_sse:.1} at the steady rate, {tracked_sse:.1} tracked"
+        );
+        // The amplitude of the breath's force: k·A/2 = 1.5 N.
+        assert!((a.hypot(c) - 1.5).abs() < 0.1, "amplitude {}", a.hypot(c));
+    }
+
+    /// A hold with noise and no breathing: a track may form, but it must not make a
+    /// sinusoid out of noise (the oscillation stays as small as without it).
+    #[test]
+    fn the_phase_track_finds_no_breathing_in_noise() {
+        let mut rng = Pcg64Mcg::seed_from_u64(5);
+        let t: Vec<f64> = (0..4000).map(|i| i as f64 * 0.01).collect();
+        let residual: Vec<f64> = t.iter().map(|_| rng.random_range(-0.2..0.2)).collect();
+        let s = held(t, residual.clone());
+        let chirp = Chirp::steady(0.28, 0.0);
+        let (_, a, c) = breathing_fit(&s, &residual, &chirp.phase_fn());
+        let (a_tracked, c_tracked, _) = follow_breaths(&s, &residual, chirp, (a, c));
+        let amplitude = a_tracked.hypot(c_tracked);
+        assert!(
+            amplitude < 0.05,
+            "a 0.2 N noise gave a {amplitude:.3} N breath"
+        );
+    }
 }

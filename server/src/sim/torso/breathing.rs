@@ -119,6 +119,9 @@ pub struct Breathing {
     phase: f64,
     drift: f64,
     rate_slope: f64,
+    /// Phase correction [rad] at elapsed times [s], interpolated linearly (see
+    /// [`Breathing::with_phase_track`]).
+    phase_track: Vec<(f64, f64)>,
     elapsed: f64,
     rng: Pcg64Mcg,
 }
@@ -181,6 +184,7 @@ impl Breathing {
             params,
             drift: 0.0,
             rate_slope: 0.0,
+            phase_track: Vec::new(),
             elapsed: 0.0,
             rng: Pcg64Mcg::seed_from_u64(seed),
         })
@@ -194,6 +198,15 @@ impl Breathing {
         self
     }
 
+    /// The same breathing with its phase corrected by `track` (`(elapsed s, rad)` knots in
+    /// time order, linear between them, constant outside): how calibration replays a
+    /// recording whose breaths were not all equally long (breath-to-breath variability of
+    /// 5–10 % puts a steady rate a radian off within a few breaths).
+    pub fn with_phase_track(mut self, track: Vec<(f64, f64)>) -> Self {
+        self.phase_track = track;
+        self
+    }
+
     /// The parameters.
     pub fn params(&self) -> &BreathingParams {
         &self.params
@@ -201,7 +214,20 @@ impl Breathing {
 
     /// Rise of the top's centre the drive holds now \[m\].
     pub fn offset(&self) -> f64 {
-        self.params.amplitude * (1.0 - self.phase.cos()) / 2.0
+        let phase = self.phase + track_at(&self.phase_track, self.elapsed);
+        self.params.amplitude * (1.0 - phase.cos()) / 2.0
+    }
+
+    /// Rise of the top's centre `elapsed` seconds after the start \[m\], from the phase,
+    /// the nominal rate, the rate slope and the phase track alone: what
+    /// [`Breathing::offset`] will be then when the random rate drift is off
+    /// (`rate_drift = 0`, as calibration's replays run).
+    pub fn offset_after(&self, elapsed: f64) -> f64 {
+        let rate = self.params.rate_bpm / 60.0;
+        let phase = self.params.phase
+            + std::f64::consts::TAU * (rate * elapsed + 0.5 * self.rate_slope * elapsed * elapsed)
+            + track_at(&self.phase_track, elapsed);
+        self.params.amplitude * (1.0 - phase.cos()) / 2.0
     }
 
     /// Particle displacements \[m\] at equilibrium under the current drive (to start an
@@ -215,6 +241,18 @@ impl Breathing {
     pub fn rate_hz(&self) -> f64 {
         let nominal = self.params.rate_bpm / 60.0;
         (nominal * (1.0 + self.drift) + self.rate_slope * self.elapsed).max(0.1 * nominal)
+    }
+}
+
+/// The piecewise-linear `track` at `t` (0 when empty, its end values outside).
+pub fn track_at(track: &[(f64, f64)], t: f64) -> f64 {
+    match track.iter().position(|&(tk, _)| tk > t) {
+        None => track.last().map_or(0.0, |k| k.1),
+        Some(0) => track[0].1,
+        Some(k) => {
+            let ((t0, v0), (t1, v1)) = (track[k - 1], track[k]);
+            v0 + (v1 - v0) * (t - t0) / (t1 - t0)
+        }
     }
 }
 
@@ -356,6 +394,40 @@ mod tests {
         }
         assert!((highest - 0.005).abs() < 0.0005, "peak rise {highest}");
         assert!(lowest.abs() < 0.0005, "lowest {lowest}");
+    }
+
+    /// The analytic offset calibration uses to place an onset's skin equals the offset the
+    /// stepped law reaches, with a rate slope and a phase track.
+    #[test]
+    fn offset_after_matches_the_stepped_law() {
+        let torso = Torso::new(TorsoParams::default(), ProbeFace::default()).unwrap();
+        let params = BreathingParams {
+            rate_drift: 0.0,
+            phase: 0.4,
+            ..Default::default()
+        };
+        let mut law = Breathing::new(params, &torso, 1)
+            .unwrap()
+            .with_rate_slope(0.002)
+            .with_phase_track(vec![(1.0, 0.0), (3.0, 0.8), (5.0, -0.3)]);
+        let (dt, empty) = (0.002, Vec::new());
+        let ctx = LawContext {
+            t: 0.0,
+            dt,
+            u: &empty,
+            v: &empty,
+            mass: &empty,
+            rest: &[],
+        };
+        let mut worst: f64 = 0.0;
+        for step in 1..=3500 {
+            law.advance(&ctx);
+            worst = worst.max((law.offset() - law.offset_after(step as f64 * dt)).abs());
+        }
+        assert!(worst < 1e-5, "worst difference {worst} m of a 5 mm breath");
+        assert_eq!(track_at(&[(1.0, 0.0), (3.0, 0.8)], 2.0), 0.4);
+        assert_eq!(track_at(&[(1.0, 0.2)], -4.0), 0.2);
+        assert_eq!(track_at(&[], 1.0), 0.0);
     }
 
     /// Rise \[m\] of the top at the centre and halfway to a corner, at full inhalation.
