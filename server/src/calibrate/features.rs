@@ -60,6 +60,9 @@ pub struct Series {
     pub session: Vec<f64>,
     /// Mean probe position in contact, world xy \[m\] (all samples without contact).
     pub xy: [f64; 2],
+    /// Times of the approaches from free air whose contact onsets placed the skin \[s\]
+    /// (see `onset::approaches`): a surface that moves (breathing) was read there.
+    pub onsets: Vec<f64>,
 }
 
 impl Series {
@@ -118,6 +121,7 @@ impl Series {
             predicted_xy: prediction.fxy.clone(),
             vxy: rec.v.iter().map(|v| [v[0], v[1]]).collect(),
             session: rec.t.iter().map(|&t| clock.share(index, t)).collect(),
+            onsets: super::onset::approaches(rec).iter().map(|a| a.0).collect(),
         }
     }
 

@@ -222,13 +222,14 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
             freqs.push(chirp.freq);
             slopes.push(chirp.slope);
             tracks.push(track.clone());
+            let at_onsets = onset_mean(s, &|t| chirp.phase(t) + track_at(track, t - s.t[0]));
             s.t.iter()
                 .zip(&s.contact)
                 .zip(b)
                 .map(|((&t, &on), b)| {
                     let phase = chirp.phase(t) + track_at(track, t - s.t[0]);
                     b + if on {
-                        a * phase.sin() + c * phase.cos()
+                        a * (phase.sin() - at_onsets.0) + c * (phase.cos() - at_onsets.1)
                     } else {
                         0.0
                     }
@@ -373,23 +374,42 @@ impl Chirp {
     }
 }
 
+/// Mean of `(sin φ, cos φ)` at the series' contact onsets (0 without any).
+///
+/// Where the skin's height was read at an onset, it was read with the breath's rise of
+/// that moment, and the replay takes it out again (see `replay::onset_breath_shift`):
+/// in contact, breathing's force is its oscillation less its value at the onsets.
+fn onset_mean(s: &Series, phase: &dyn Fn(f64) -> f64) -> (f64, f64) {
+    if s.onsets.is_empty() {
+        return (0.0, 0.0);
+    }
+    let n = s.onsets.len() as f64;
+    let (sin, cos) = s.onsets.iter().fold((0.0, 0.0), |(a, b), &t| {
+        let (s, c) = phase(t).sin_cos();
+        (a + s, b + c)
+    });
+    (sin / n, cos / n)
+}
+
 /// Fit `a·sin φ + b·cos φ` (φ = `phase(t)`) to the in-contact part of `residual`
-/// (one series): (SSE, a, b, prediction).
+/// (one series), less its value at the contact onsets (see [`onset_mean`]): (SSE, a, b,
+/// prediction).
 fn sinusoid_fit(
     s: &Series,
     residual: &[f64],
     phase: &dyn Fn(f64) -> f64,
 ) -> (f64, f64, f64, Vec<f64>) {
     let mask = contact_mask(s);
+    let (sin_on, cos_on) = onset_mean(s, phase);
     let sin: Vec<f64> =
         s.t.iter()
             .zip(&mask)
-            .map(|(&t, m)| m * phase(t).sin())
+            .map(|(&t, m)| m * (phase(t).sin() - sin_on))
             .collect();
     let cos: Vec<f64> =
         s.t.iter()
             .zip(&mask)
-            .map(|(&t, m)| m * phase(t).cos())
+            .map(|(&t, m)| m * (phase(t).cos() - cos_on))
             .collect();
     let rows = vec![true; s.len()];
     let beta = least_squares(&[sin.clone(), cos.clone()], residual, &rows);
@@ -554,6 +574,7 @@ mod tests {
             vxy: vec![[0.0; 2]; n],
             session: vec![0.0; n],
             xy: [0.0; 2],
+            onsets: Vec::new(),
             t,
         }
     }
