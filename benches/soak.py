@@ -194,69 +194,74 @@ def worker(slot: int, seed: int, name: str, counts, messages, gen, pause, paused
         if conn_gen % 2:
             time.sleep(0.02)  # the server is being restarted
             continue
-        try:
-            client = echogym.connect(name)
-        except echogym.EchogymError as e:
-            if gen.value != conn_gen:
-                bump("restart_errors")
-            else:
-                bump("unexpected")
-                note(f"connect: {type(e).__name__}: {e}")
-            time.sleep(0.05)
-            continue
-        lease = None
-        stage = "attach"
-        busy[slot] = time.time()  # a control request or exchange under way since
-        try:
-            scan = rng.random() < 0.15
-            env_id = SCAN if scan else NULL
-            k = int(rng.choice([2, 4])) if scan else 2 * int(rng.integers(1, 33))
-            lease = client.attach(env_id, k, {} if scan else NULL_CONFIG, "same_step")
-            bump("leases")
-            check = Check(lease, env_id, rng)
-            stage = "reset"
-            out = lease.reset(None, check.seeds())
+        one_connection(name, rng, conn_gen, gen, pause, bump, note, lambda t: busy.__setitem__(slot, t))
+
+
+def one_connection(name, rng, conn_gen, gen, pause, bump, note, set_busy) -> None:
+    """One connection of a churn worker: attach, reset, step (checking), detach. Every
+    reference to the connection (the lease, its check, the observations: views into the
+    shared memory) is local, so it is gone when this returns: a paused worker holds no
+    node, and every quiesced sample sees the same state."""
+    try:
+        client = echogym.connect(name)
+    except echogym.EchogymError as e:
+        if gen.value != conn_gen:
+            bump("restart_errors")
+        else:
+            bump("unexpected")
+            note(f"connect: {type(e).__name__}: {e}")
+        time.sleep(0.05)
+        return
+    stage = "attach"
+    set_busy(time.time())  # a control request or exchange under way since
+    try:
+        scan = rng.random() < 0.15
+        env_id = SCAN if scan else NULL
+        k = int(rng.choice([2, 4])) if scan else 2 * int(rng.integers(1, 33))
+        lease = client.attach(env_id, k, {} if scan else NULL_CONFIG, "same_step")
+        bump("leases")
+        check = Check(lease, env_id, rng)
+        stage = "reset"
+        out = lease.reset(None, check.seeds())
+        bump("exchanges")
+        bump("observations", k)
+        if (problem := check.check(out, None)) is not None:
+            bump("corrupt")
+            note(f"{env_id} × {k} reset: {problem}")
+        stage = "step"
+        for _ in range(int(rng.integers(10, 401))):
+            if pause.value:
+                break
+            actions = check.actions()
+            set_busy(time.time())
+            out = lease.step(actions)
+            check.steps += 1
             bump("exchanges")
             bump("observations", k)
-            if (problem := check.check(out, None)) is not None:
+            if (problem := check.check(out, actions)) is not None:
                 bump("corrupt")
-                note(f"{env_id} × {k} reset: {problem}")
-            stage = "step"
-            for _ in range(int(rng.integers(10, 401))):
-                if pause.value:
-                    break
-                actions = check.actions()
-                busy[slot] = time.time()
-                out = lease.step(actions)
-                check.steps += 1
-                bump("exchanges")
-                bump("observations", k)
-                if (problem := check.check(out, actions)) is not None:
-                    bump("corrupt")
-                    note(f"{env_id} × {k} step {check.steps}: {problem}")
-            if rng.random() < 0.05 and not pause.value:
-                bump("exits")
-                os._exit(0)  # holding the lease: the server reclaims it
-            stage = "close"
-            lease.close()
-            busy[slot] = 0.0
-        except echogym.EchogymError as e:
-            restarted = gen.value != conn_gen
-            if restarted and isinstance(e, echogym.ServerStoppedError):
-                bump("stopped")
-            elif restarted and stage in ("attach", "close"):
-                bump("restart_errors")
-            elif stage in ("reset", "step"):
-                # No observation came back from a live server (or a wrong error type
-                # from a dead one).
-                bump("lost")
-                note(f"{stage}{' (server restarted)' if restarted else ''}: {type(e).__name__}: {e}")
-            else:
-                bump("unexpected")
-                note(f"{stage}: {type(e).__name__}: {e}")
-        finally:
-            busy[slot] = 0.0
-            del lease, client
+                note(f"{env_id} × {k} step {check.steps}: {problem}")
+        if rng.random() < 0.05 and not pause.value:
+            bump("exits")
+            os._exit(0)  # holding the lease: the server reclaims it
+        stage = "close"
+        lease.close()
+    except echogym.EchogymError as e:
+        restarted = gen.value != conn_gen
+        if restarted and isinstance(e, echogym.ServerStoppedError):
+            bump("stopped")
+        elif restarted and stage in ("attach", "close"):
+            bump("restart_errors")
+        elif stage in ("reset", "step"):
+            # No observation came back from a live server (or a wrong error type
+            # from a dead one).
+            bump("lost")
+            note(f"{stage}{' (server restarted)' if restarted else ''}: {type(e).__name__}: {e}")
+        else:
+            bump("unexpected")
+            note(f"{stage}: {type(e).__name__}: {e}")
+    finally:
+        set_busy(0.0)
 
 
 def big_client(name: str, envs: int, seconds: float, ready, go, result) -> None:
@@ -291,6 +296,37 @@ def fds(pid: int) -> int:
 
 def shm_names(prefix: str) -> set[str]:
     return {name for name in os.listdir("/dev/shm") if name.startswith(prefix)}
+
+
+def segment_holders(names: set[str], roles: dict[int, str]) -> dict[str, int]:
+    """How many of ``names`` (segments under /dev/shm) each process maps or holds open,
+    by role (``roles``: pid → role; other processes are ``"other"``). A segment no process
+    holds counts as ``"none"`` (left on disk)."""
+    held: dict[str, set[str]] = {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        pid = int(entry)
+        found: set[str] = set()
+        try:
+            with open(f"/proc/{pid}/maps") as f:
+                for line in f:
+                    i = line.find("/dev/shm/")
+                    if i >= 0:
+                        found.add(line[i + 9:].split()[0])
+            for fd in os.listdir(f"/proc/{pid}/fd"):
+                target = os.readlink(f"/proc/{pid}/fd/{fd}")
+                if target.startswith("/dev/shm/"):
+                    found.add(target[9:])
+        except OSError:
+            continue  # exited meanwhile
+        for name in found & names:
+            held.setdefault(name, set()).add(roles.get(pid, "other"))
+    counts: dict[str, int] = {}
+    for name in names:
+        for role in held.get(name, {"none"}):
+            counts[role] = counts.get(role, 0) + 1
+    return counts
 
 
 def pct(values, q) -> float:
@@ -474,6 +510,11 @@ class Soak:
                 break
             figures = now
             self.step_for(0.3, None)
+        roles = {pid: "server", os.getpid(): "bystander"}
+        for slot, p in enumerate(self.procs):
+            if p is not None and p.pid is not None:
+                roles[p.pid] = f"worker {slot}"
+        now["holders"] = segment_holders(now["names"], roles)
         return now
 
     def resume(self) -> None:
@@ -696,6 +737,9 @@ def main() -> int:
                      f"{'pass' if w['pass'] else 'FAIL'}"))
     for i, inst in enumerate(soak.instances, 1):
         b, a = inst["baseline"], inst["after"]
+        holders = lambda h: ", ".join(f"{k} {v}" for k, v in sorted(h.items()))  # noqa: E731
+        soak.notes.append(f"server {i}: segments held at baseline: {holders(b['holders'])}; "
+                          f"after: {holders(a['holders'])}")
         for name in sorted(a["names"] - b["names"])[:12]:
             soak.notes.append(f"server {i}: segment after churn, not at baseline: {name}")
         for name in sorted(b["names"] - a["names"])[:12]:
