@@ -314,12 +314,16 @@ def segment_holders(names: set[str], roles: dict[int, str]) -> dict[str, int]:
                     i = line.find("/dev/shm/")
                     if i >= 0:
                         found.add(line[i + 9:].split()[0])
-            for fd in os.listdir(f"/proc/{pid}/fd"):
-                target = os.readlink(f"/proc/{pid}/fd/{fd}")
-                if target.startswith("/dev/shm/"):
-                    found.add(target[9:])
+            fds = os.listdir(f"/proc/{pid}/fd")
         except OSError:
             continue  # exited meanwhile
+        for fd in fds:
+            try:
+                target = os.readlink(f"/proc/{pid}/fd/{fd}")
+            except OSError:
+                continue  # closed meanwhile (the listing's own descriptor, for one)
+            if target.startswith("/dev/shm/"):
+                found.add(target[9:])
         for name in found & names:
             held.setdefault(name, set()).add(roles.get(pid, "other"))
     counts: dict[str, int] = {}
