@@ -64,6 +64,8 @@ pub struct FitResult {
     pub half_width_95: Vec<f64>,
     /// Parameter correlation matrix (row-major, n × n; NaN where not identifiable).
     pub correlation: Vec<f64>,
+    /// Which parameters stopped at a bound of their range.
+    pub at_bound: Vec<bool>,
 }
 
 /// Residual blocks: `f(x, blocks)` returns the residuals of the listed blocks, in order.
@@ -217,6 +219,7 @@ pub fn levenberg_marquardt_blocks(
         convergence,
         half_width_95,
         correlation,
+        at_bound,
     }
 }
 
@@ -476,6 +479,31 @@ mod tests {
             fit.x
         );
         assert_eq!(fit.convergence, Convergence::Converged);
+    }
+
+    /// The same curve with the rate's range ending at 0.5 (the truth is 0.7): the rate
+    /// stops at its bound and says so; the amplitude, inside its range, does not.
+    #[test]
+    fn a_parameter_stopped_at_its_bound_says_so() {
+        let t: Vec<f64> = (0..50).map(|k| k as f64 * 0.1).collect();
+        let res = |p: &[f64]| -> Vec<f64> {
+            t.iter()
+                .map(|t| p[0] * (-p[1] * t).exp() + 0.5 - (3.0 * (-0.7 * t).exp() + 0.5))
+                .collect()
+        };
+        let wide = Bound {
+            lo: -10.0,
+            hi: 10.0,
+            step: 1e-6,
+        };
+        let rate = Bound {
+            lo: 0.0,
+            hi: 0.5,
+            step: 1e-6,
+        };
+        let fit = levenberg_marquardt(&res, &[1.0, 0.2], &[wide, rate], 50);
+        assert_eq!(fit.x[1], 0.5, "{:?}", fit.x);
+        assert_eq!(fit.at_bound, vec![false, true]);
     }
 
     #[test]

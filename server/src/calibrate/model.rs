@@ -25,8 +25,11 @@ pub struct Estimate {
     /// Value (in the model's units; parameters fitted as logarithms are reported in
     /// natural units).
     pub value: f64,
-    /// 95 % interval.
+    /// 95 % interval (NaN where it is not defined: a parameter at a bound of its range).
     pub interval: [f64; 2],
+    /// The fit stopped at a bound of the parameter's range: the value is the model's
+    /// limit, not an estimate.
+    pub at_bound: bool,
 }
 
 /// What a fit says about itself.
@@ -355,6 +358,10 @@ pub fn fit_model(
         .enumerate()
         .map(|(j, name)| {
             let (v, h) = (fit.x[j], fit.half_width_95[j]);
+            let at_bound = fit.at_bound[j];
+            // A parameter pinned at a bound has no interval (the Jacobian's is one-sided
+            // and says nothing about how far the data would take it).
+            let h = if at_bound { f64::NAN } else { h };
             let (value, interval) = if packed.log[j] {
                 (v.exp(), [(v - h).exp(), (v + h).exp()])
             } else {
@@ -364,6 +371,7 @@ pub fn fit_model(
                 name: name.clone(),
                 value,
                 interval,
+                at_bound,
             }
         })
         .collect();

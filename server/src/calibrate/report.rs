@@ -131,6 +131,7 @@ fn diagnostics_json(d: &FitDiagnostics) -> serde_json::Value {
         "evaluations": d.evaluations,
         "estimates": d.estimates.iter().map(|e| serde_json::json!({
             "name": e.name, "value": e.value, "interval_95": e.interval,
+            "at_bound": e.at_bound,
         })).collect::<Vec<_>>(),
         "correlated_above_0_95": d.correlated.iter().map(|(a, b, r)| serde_json::json!({
             "a": a, "b": b, "correlation": r,
@@ -490,13 +491,32 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
             .iter()
             .filter(|e| !e.name.starts_with("surface."))
         {
-            let _ = writeln!(
-                s,
-                "| {} | {:.4} | {:.4} … {:.4} |",
-                e.name, e.value, e.interval[0], e.interval[1]
-            );
+            if e.at_bound {
+                let _ = writeln!(
+                    s,
+                    "| {} | {:.4} | at its range's bound: none |",
+                    e.name, e.value
+                );
+            } else {
+                let _ = writeln!(
+                    s,
+                    "| {} | {:.4} | {:.4} … {:.4} |",
+                    e.name, e.value, e.interval[0], e.interval[1]
+                );
+            }
         }
         let _ = writeln!(s, "\nFinal fit {}.", o.calibrated_fit.convergence.as_str());
+    }
+    for e in
+        o.calibrated_fit.estimates.iter().filter(|e| {
+            e.at_bound && !e.name.starts_with("surface.") && !e.name.starts_with("path.")
+        })
+    {
+        let _ = writeln!(
+            s,
+            "- warning: {} stopped at the bound of its range ({:.4}): the recordings ask for more than the model allows, so the value is a limit, not an estimate. The physics may have another form than the catalogue's (docs/calibration.md, \"What the tool cannot tell apart\").",
+            e.name, e.value
+        );
     }
     for (a, b, r) in &o.calibrated_fit.correlated {
         let _ = writeln!(
