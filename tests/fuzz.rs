@@ -6,6 +6,14 @@
 //!
 //! Each property runs 256 generated cases per env (≈ 1 s in all in a release build);
 //! `PROPTEST_CASES` raises it for a longer run (3,000 per env: 8.5 s, no failure).
+//!
+//! The corpus (`tests/data/fuzz_corpus/`: `config_*.json` are `{env_id, config}`,
+//! `control_*.bin` raw control-request bytes) holds the inputs that mattered: the
+//! allocations and stalls issue 15 found, malformed and hostile requests. Every file is
+//! replayed here, and the control requests again against a real server in
+//! `tests/isolation.rs`. A new finding goes in as a file.
+
+mod common;
 
 use std::time::{Duration, Instant};
 
@@ -216,6 +224,50 @@ fn configs_that_would_allocate_without_bound_are_refused_naming_the_key() {
         message.contains("cameras") && message.contains("pixels"),
         "{message}"
     );
+}
+
+#[test]
+fn every_corpus_config_is_built_within_budget_or_refused_with_a_typed_error() {
+    let registry = EnvRegistry::default();
+    let files = common::corpus("config_");
+    assert!(
+        files.len() >= 20,
+        "the corpus is missing ({} configs)",
+        files.len()
+    );
+    let built = std::cell::Cell::new(0);
+    for (name, bytes) in &files {
+        let entry: Value = serde_json::from_slice(bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let env_id = entry["env_id"].as_str().expect("env_id");
+        let factory = registry
+            .get(env_id)
+            .unwrap_or_else(|e| panic!("{name}: {env_id}: {e:?}"));
+        let config = entry["config"].as_object().cloned().expect("config");
+        match factory.spec(&config) {
+            Err(e) => assert!(!e.to_string().is_empty(), "{name}: an empty refusal"),
+            Ok(spec) => {
+                let started = Instant::now();
+                let env = factory.make(&spec);
+                let took = started.elapsed();
+                assert!(took < BUILD_LIMIT, "{name}: built in {took:?}");
+                built.set(built.get() + usize::from(env.is_ok()));
+            }
+        }
+    }
+    eprintln!("{} of {} corpus configs built", built.get(), files.len());
+}
+
+#[test]
+fn every_corpus_control_request_parses_or_is_refused() {
+    let files = common::corpus("control_");
+    assert!(
+        files.len() >= 10,
+        "the corpus is missing ({} requests)",
+        files.len()
+    );
+    for (_, bytes) in &files {
+        let _ = serde_json::from_slice::<ControlRequest>(bytes);
+    }
 }
 
 proptest! {

@@ -234,3 +234,23 @@ pub fn spawn_self(name: &str, env: &[(&str, String)]) -> Child {
     }
     command.spawn().expect("spawn child client")
 }
+
+/// The corpus files whose names start with `prefix`, with their bytes.
+pub fn corpus(prefix: &str) -> Vec<(String, Vec<u8>)> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/fuzz_corpus");
+    let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|entry| entry.expect("a corpus entry").path())
+        .filter(|path| {
+            path.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with(prefix))
+        })
+        .map(|path| {
+            let name = path.file_name().unwrap().to_string_lossy().into_owned();
+            (name, std::fs::read(&path).expect("a corpus file"))
+        })
+        .collect();
+    files.sort();
+    files
+}

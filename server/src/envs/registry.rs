@@ -17,10 +17,22 @@ use super::ultrasound_scan::UltrasoundScan;
 #[derive(Debug, thiserror::Error, Clone, PartialEq, Eq)]
 #[error("unknown env id {id:?}; registered: {known}")]
 pub struct UnknownEnv {
-    /// The id asked for.
+    /// The id asked for; a longer one is cut to [`SHOWN_ID_CHARS`] characters and its
+    /// length (a refusal does not echo megabytes of a client's request back).
     pub id: String,
     /// The registered ids, comma-separated.
     pub known: String,
+}
+
+/// The most characters of an unknown id a refusal repeats.
+pub const SHOWN_ID_CHARS: usize = 128;
+
+/// `id`, or its first [`SHOWN_ID_CHARS`] characters and its length.
+fn shown(id: &str) -> String {
+    match id.char_indices().nth(SHOWN_ID_CHARS) {
+        None => id.to_owned(),
+        Some((end, _)) => format!("{}… ({} bytes)", &id[..end], id.len()),
+    }
 }
 
 /// All registered envs.
@@ -66,7 +78,7 @@ impl EnvRegistry {
             .get(id)
             .map(|f| f.as_ref())
             .ok_or_else(|| UnknownEnv {
-                id: id.to_owned(),
+                id: shown(id),
                 known: self
                     .factories
                     .keys()
@@ -85,5 +97,25 @@ impl EnvRegistry {
                 description: f.description().to_owned(),
             })
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_unknown_id_is_quoted_at_most_to_its_first_characters() {
+        let registry = EnvRegistry::default();
+        let short = registry.get("echogym/Nope-v0").err().expect("unknown");
+        assert_eq!(short.id, "echogym/Nope-v0");
+        let long = "é".repeat(100_000);
+        let refused = registry.get(&long).err().expect("unknown");
+        assert!(refused.id.starts_with(&"é".repeat(SHOWN_ID_CHARS)));
+        assert!(
+            refused.id.ends_with("… (200000 bytes)"),
+            "{}",
+            &refused.id[250..]
+        );
     }
 }

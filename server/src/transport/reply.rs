@@ -13,10 +13,20 @@ pub(super) type ControlRequestHandle = ActiveRequest<Ipc, [u8], ControlHeader, [
 
 /// A refusal, logged at debug level.
 pub(super) fn refusal(kind: ControlErrorKind, message: impl Into<String>) -> ControlError {
-    let message = message.into();
+    let mut message = message.into();
+    // A refusal may quote the request (serde names an unknown variant, an env id): it
+    // never echoes more than a screenful of it back.
+    if let Some((end, _)) = message.char_indices().nth(MAX_REFUSAL_CHARS) {
+        let total = message.len();
+        message.truncate(end);
+        message.push_str(&format!("… ({total} bytes in all)"));
+    }
     tracing::debug!(?kind, %message, "control request refused");
     ControlError { kind, message }
 }
+
+/// The most characters of a refusal's message.
+const MAX_REFUSAL_CHARS: usize = 2048;
 
 /// A refusal as a reply.
 pub(super) fn error(kind: ControlErrorKind, message: impl Into<String>) -> ControlReply {
