@@ -17,7 +17,7 @@ use super::ultrasound_scan::UltrasoundScan;
 #[derive(Debug, thiserror::Error, Clone, PartialEq, Eq)]
 #[error("unknown env id {id:?}; registered: {known}")]
 pub struct UnknownEnv {
-    /// The id asked for; a longer one is cut to [`SHOWN_ID_CHARS`] characters and its
+    /// The id asked for; a longer one is cut to its first 128 characters and its
     /// length (a refusal does not echo megabytes of a client's request back).
     pub id: String,
     /// The registered ids, comma-separated.
@@ -25,7 +25,7 @@ pub struct UnknownEnv {
 }
 
 /// The most characters of an unknown id a refusal repeats.
-pub const SHOWN_ID_CHARS: usize = 128;
+const SHOWN_ID_CHARS: usize = 128;
 
 /// `id`, or its first [`SHOWN_ID_CHARS`] characters and its length.
 fn shown(id: &str) -> String {
