@@ -473,43 +473,106 @@ fn an_oversized_control_request_is_refused_unparsed() {
 /// Control replies the server preallocates (`CONTROL_RESPONSES` in `server/src/transport/reply.rs`).
 const CONTROL_RESPONSES: usize = 64;
 
+/// A raw iceoryx2 control client of a server (none of echogym's client code): it sends
+/// any bytes as a request, with a correct header.
+struct RawControl {
+    control: echogym_protocol::services::ControlService<iceoryx2::prelude::ipc_threadsafe::Service>,
+    wake: iceoryx2::port::notifier::Notifier<iceoryx2::prelude::ipc_threadsafe::Service>,
+    _node: iceoryx2::node::Node<iceoryx2::prelude::ipc_threadsafe::Service>,
+}
+
+type RawClient = iceoryx2::port::client::Client<
+    iceoryx2::prelude::ipc_threadsafe::Service,
+    [u8],
+    echogym_protocol::ControlHeader,
+    [u8],
+    echogym_protocol::ControlHeader,
+>;
+type RawPending = iceoryx2::pending_response::PendingResponse<
+    iceoryx2::prelude::ipc_threadsafe::Service,
+    [u8],
+    echogym_protocol::ControlHeader,
+    [u8],
+    echogym_protocol::ControlHeader,
+>;
+
+impl RawControl {
+    fn open(server: &TestServer) -> Self {
+        use echogym_protocol::ServiceNames;
+        use echogym_protocol::services::{Access, MAX_CLIENTS, control_service, event_service};
+        use iceoryx2::prelude::*;
+        let names = ServiceNames::new(&server.name).unwrap();
+        let config = server.location.iceoryx_config().unwrap();
+        let node = NodeBuilder::new()
+            .config(&config)
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<ipc_threadsafe::Service>()
+            .unwrap();
+        let control = control_service(&node, &names.control(), Access::Open).unwrap();
+        let wake = event_service(&node, &names.wake(), MAX_CLIENTS, Access::Open).unwrap();
+        let wake = wake.notifier_builder().create().unwrap();
+        Self {
+            control,
+            wake,
+            _node: node,
+        }
+    }
+
+    /// A client port of its own.
+    fn client(&self) -> RawClient {
+        use iceoryx2::prelude::*;
+        self.control
+            .client_builder()
+            .initial_max_slice_len(4096)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .create()
+            .unwrap()
+    }
+
+    /// Send `bytes` as a request through `client` and wake the server.
+    fn send(&self, client: &RawClient, bytes: &[u8]) -> RawPending {
+        let mut request = client.loan_slice_uninit(bytes.len()).unwrap();
+        *request.user_header_mut() = echogym_protocol::ControlHeader {
+            protocol_version: echogym_protocol::PROTOCOL_VERSION,
+            payload_len: bytes.len() as u32,
+        };
+        let pending = request.write_from_slice(bytes).send().unwrap();
+        self.wake.notify().unwrap();
+        pending
+    }
+}
+
+/// The reply to `pending`, calling `meanwhile` while it is not in (at most 30 s).
+fn raw_reply(pending: &RawPending, what: &str, mut meanwhile: impl FnMut()) -> ControlReply {
+    let started = Instant::now();
+    loop {
+        if let Some(response) = pending.receive().unwrap() {
+            let len = (response.user_header().payload_len as usize).min(response.payload().len());
+            return serde_json::from_slice(&response.payload()[..len])
+                .unwrap_or_else(|e| panic!("{what}: an unparsable reply: {e}"));
+        }
+        assert!(
+            started.elapsed() < Duration::from_secs(30),
+            "{what}: no reply in 30 s"
+        );
+        meanwhile();
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
 #[test]
 fn clients_that_never_take_their_replies_do_not_block_the_others() {
     // More raw clients than the server has reply samples send a request each and never
     // take the reply (stopped or malicious processes). The server lives; the requests
     // that find no free reply sample are answered as soon as the stuck clients go away.
     // (With iceoryx2's growable reply segment and fewer slots, the server panicked here.)
-    use echogym_protocol::services::{Access, MAX_CLIENTS, control_service, event_service};
-    use echogym_protocol::{ControlHeader, PROTOCOL_VERSION, ServiceNames};
-    use iceoryx2::prelude::*;
-
     let mut server = TestServer::start_in("isolation-stuck", common::fresh_location(), &[]);
-    let names = ServiceNames::new(&server.name).unwrap();
-    let config = server.location.iceoryx_config().unwrap();
-    let node = NodeBuilder::new()
-        .config(&config)
-        .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<ipc_threadsafe::Service>()
-        .unwrap();
-    let control = control_service(&node, &names.control(), Access::Open).unwrap();
-    let wake = event_service(&node, &names.wake(), MAX_CLIENTS, Access::Open).unwrap();
-    let wake = wake.notifier_builder().create().unwrap();
+    let raw = RawControl::open(&server);
     let text = serde_json::to_vec(&ControlRequest::Status).unwrap();
     let mut stuck = Vec::new();
     for _ in 0..3 * CONTROL_RESPONSES {
-        let client = control
-            .client_builder()
-            .initial_max_slice_len(4096)
-            .allocation_strategy(AllocationStrategy::PowerOfTwo)
-            .create()
-            .unwrap();
-        let mut request = client.loan_slice_uninit(text.len()).unwrap();
-        *request.user_header_mut() = ControlHeader {
-            protocol_version: PROTOCOL_VERSION,
-            payload_len: text.len() as u32,
-        };
-        let pending = request.write_from_slice(&text).send().unwrap();
-        wake.notify().unwrap();
+        let client = raw.client();
+        let pending = raw.send(&client, &text);
         stuck.push((client, pending)); // never received
     }
     std::thread::sleep(Duration::from_millis(500));
@@ -537,7 +600,7 @@ fn clients_that_never_take_their_replies_do_not_block_the_others() {
     for _ in 0..2 * CONTROL_RESPONSES {
         status(&connection);
     }
-    drop((wake, control, node));
+    drop(raw);
 }
 
 #[test]
@@ -654,56 +717,20 @@ fn every_corpus_control_request_gets_a_typed_answer_and_the_server_serves_on() {
     // env counts, malformed, truncated, deeply nested, invalid UTF-8, ...) sent by a raw
     // iceoryx2 client, each with a correct header: each gets a reply that parses, and a
     // refusal where the request is not a valid one; a bystander steps throughout.
-    use echogym_protocol::services::{Access, MAX_CLIENTS, control_service, event_service};
-    use echogym_protocol::{ControlHeader, PROTOCOL_VERSION, ServiceNames};
-    use iceoryx2::prelude::*;
-
     let server = TestServer::start_in("isolation-corpus", common::fresh_location(), &[]);
     let connection = server.connect();
     let mut bystander = reset_bystander(&connection);
-    let names = ServiceNames::new(&server.name).unwrap();
-    let config = server.location.iceoryx_config().unwrap();
-    let node = NodeBuilder::new()
-        .config(&config)
-        .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<ipc_threadsafe::Service>()
-        .unwrap();
-    let control = control_service(&node, &names.control(), Access::Open).unwrap();
-    let wake = event_service(&node, &names.wake(), MAX_CLIENTS, Access::Open).unwrap();
-    let wake = wake.notifier_builder().create().unwrap();
-    let client = control
-        .client_builder()
-        .initial_max_slice_len(4096)
-        .allocation_strategy(AllocationStrategy::PowerOfTwo)
-        .create()
-        .unwrap();
+    let raw = RawControl::open(&server);
+    let client = raw.client();
     let files = common::corpus("control_");
     assert!(files.len() >= 10, "the corpus is missing");
     for (name, bytes) in &files {
-        let mut request = client.loan_slice_uninit(bytes.len()).unwrap();
-        *request.user_header_mut() = ControlHeader {
-            protocol_version: PROTOCOL_VERSION,
-            payload_len: bytes.len() as u32,
-        };
-        let pending = request.write_from_slice(bytes).send().unwrap();
-        wake.notify().unwrap();
-        let started = Instant::now();
-        let reply: ControlReply = loop {
-            if let Some(response) = pending.receive().unwrap() {
-                let len =
-                    (response.user_header().payload_len as usize).min(response.payload().len());
-                break serde_json::from_slice(&response.payload()[..len])
-                    .unwrap_or_else(|e| panic!("{name}: an unparsable reply: {e}"));
-            }
-            assert!(
-                started.elapsed() < Duration::from_secs(30),
-                "{name}: no reply in 30 s"
-            );
+        let pending = raw.send(&client, bytes);
+        let reply = raw_reply(&pending, name, || {
             bystander
                 .step(&[0.0; 7], None)
                 .expect("the bystander steps");
-            std::thread::sleep(Duration::from_millis(1));
-        };
+        });
         let valid = serde_json::from_slice::<ControlRequest>(bytes).is_ok();
         eprintln!(
             "{name}: {}",
@@ -728,26 +755,8 @@ fn every_corpus_control_request_gets_a_typed_answer_and_the_server_serves_on() {
     }
     // An op name of 500 kB (serde quotes an unknown variant) is not echoed back whole.
     let huge = format!("{{\"op\": \"{}\"}}", "x".repeat(500_000));
-    let mut request = client.loan_slice_uninit(huge.len()).unwrap();
-    *request.user_header_mut() = ControlHeader {
-        protocol_version: PROTOCOL_VERSION,
-        payload_len: huge.len() as u32,
-    };
-    let pending = request.write_from_slice(huge.as_bytes()).send().unwrap();
-    wake.notify().unwrap();
-    let started = Instant::now();
-    let reply: ControlReply = loop {
-        if let Some(response) = pending.receive().unwrap() {
-            let len = (response.user_header().payload_len as usize).min(response.payload().len());
-            break serde_json::from_slice(&response.payload()[..len]).expect("a reply");
-        }
-        assert!(
-            started.elapsed() < Duration::from_secs(30),
-            "no reply in 30 s"
-        );
-        std::thread::sleep(Duration::from_millis(1));
-    };
-    match reply {
+    let pending = raw.send(&client, huge.as_bytes());
+    match raw_reply(&pending, "a 500 kB op", || {}) {
         ControlReply::Error(e) => assert!(e.message.len() < 4096, "{} bytes", e.message.len()),
         other => panic!("an unknown op was answered {other:?}"),
     }
@@ -756,5 +765,5 @@ fn every_corpus_control_request_gets_a_typed_answer_and_the_server_serves_on() {
         .step(&[0.0; 7], None)
         .expect("the bystander steps");
     assert_eq!(status(&connection).leases.len(), 1);
-    drop((client, wake, control, node));
+    drop((client, raw));
 }
