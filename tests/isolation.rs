@@ -752,6 +752,12 @@ fn every_corpus_control_request_gets_a_typed_answer_and_the_server_serves_on() {
             }
             other => assert!(valid, "{name}: an invalid request was answered {other:?}"),
         }
+        if name.starts_with("control_attach_65536") {
+            // Beyond the client's quota on its own: refused naming the quota, not the
+            // server's limit.
+            let text = serde_json::to_string(&reply).unwrap_or_default();
+            assert!(text.contains("max_envs_per_client"), "{text}");
+        }
     }
     // An op name of 500 kB (serde quotes an unknown variant) is not echoed back whole.
     let huge = format!("{{\"op\": \"{}\"}}", "x".repeat(500_000));

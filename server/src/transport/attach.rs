@@ -58,6 +58,30 @@ impl Dispatcher {
         let spec = factory
             .spec(&request.config)
             .map_err(|e| refusal(ControlErrorKind::InvalidConfig, e.to_string()))?;
+        // A client's own quota first: a request beyond it is refused naming the quota
+        // whatever the others hold; then the server's limits.
+        let (client_leases, client_envs, client_shm) = self.held_by(client_node);
+        if client_leases >= self.options.max_leases_per_client {
+            return Err(refusal(
+                ControlErrorKind::CapacityExceeded,
+                format!(
+                    "this client holds its maximum of {} leases (max_leases_per_client)",
+                    self.options.max_leases_per_client
+                ),
+            ));
+        }
+        let fits_client = client_envs
+            .checked_add(request.num_envs)
+            .is_some_and(|total| total <= self.options.max_envs_per_client);
+        if !fits_client {
+            return Err(refusal(
+                ControlErrorKind::CapacityExceeded,
+                format!(
+                    "{} more envs would exceed this client's max_envs_per_client of {} ({client_envs} held or being built)",
+                    request.num_envs, self.options.max_envs_per_client
+                ),
+            ));
+        }
         let leases = self.leases.len() + self.pending.len();
         if leases >= self.options.max_leases {
             return Err(refusal(
@@ -85,6 +109,18 @@ impl Dispatcher {
         let layout = BatchLayout::new(&spec, request.num_envs, request.autoreset_mode)
             .map_err(|e| refusal(ControlErrorKind::InvalidConfig, e.to_string()))?;
         let shm_bytes = layout.shared_memory_bytes() as u64;
+        if client_shm.saturating_add(shm_bytes) > self.options.max_shm_bytes_per_client {
+            return Err(refusal(
+                ControlErrorKind::CapacityExceeded,
+                format!(
+                    "{} envs need {} of shared memory, which would exceed this client's max_shm_bytes_per_client of {} ({} held or being built)",
+                    request.num_envs,
+                    mib(shm_bytes),
+                    mib(self.options.max_shm_bytes_per_client),
+                    mib(client_shm)
+                ),
+            ));
+        }
         let shm_in_use = self.shm_bytes_in_use();
         if shm_in_use.saturating_add(shm_bytes) > self.options.max_shm_bytes {
             return Err(refusal(
@@ -95,40 +131,6 @@ impl Dispatcher {
                     mib(shm_bytes),
                     mib(self.options.max_shm_bytes),
                     mib(shm_in_use)
-                ),
-            ));
-        }
-        let (client_leases, client_envs, client_shm) = self.held_by(client_node);
-        if client_leases >= self.options.max_leases_per_client {
-            return Err(refusal(
-                ControlErrorKind::CapacityExceeded,
-                format!(
-                    "this client holds its maximum of {} leases (max_leases_per_client)",
-                    self.options.max_leases_per_client
-                ),
-            ));
-        }
-        let fits_client = client_envs
-            .checked_add(request.num_envs)
-            .is_some_and(|total| total <= self.options.max_envs_per_client);
-        if !fits_client {
-            return Err(refusal(
-                ControlErrorKind::CapacityExceeded,
-                format!(
-                    "{} more envs would exceed this client's max_envs_per_client of {} ({client_envs} held or being built)",
-                    request.num_envs, self.options.max_envs_per_client
-                ),
-            ));
-        }
-        if client_shm.saturating_add(shm_bytes) > self.options.max_shm_bytes_per_client {
-            return Err(refusal(
-                ControlErrorKind::CapacityExceeded,
-                format!(
-                    "{} envs need {} of shared memory, which would exceed this client's max_shm_bytes_per_client of {} ({} held or being built)",
-                    request.num_envs,
-                    mib(shm_bytes),
-                    mib(self.options.max_shm_bytes_per_client),
-                    mib(client_shm)
                 ),
             ));
         }
