@@ -22,10 +22,8 @@ robosuite side (benches/envs_robosuite.py in benches/.venv-peers, one process, o
 `Lift` Panda OSC_POSE at 20 Hz and UR5e OSC_POSE at 500 Hz.
 Each figure is the median of `--repeats` runs of `--seconds`. Prints a markdown table,
 writes benches/results/envs.{md,json}, and ends with one `RESULT key=value ...` line.
-`--scaling`: (a) with 16 envs at 1 server thread (pinned to one core) and at 2 threads
-(both cores, shared with the client), the efficiency, and the model of
-docs/benchmarks.md (per-env cost from `--env-step-json`, benches/env_step.rs in-process
-on one core; the rest of the batch time is the dispatcher's) predicting 4/8/16 threads.
+`--scaling`: benches/scaling.py's curve (batches of 16 and 64 at 1/2/4/8/16 server threads,
+those the machine has cores for; with `--env-step-bin`, the machine alone) and its model.
 """
 
 from __future__ import annotations
@@ -36,14 +34,12 @@ import os
 import statistics
 import subprocess
 import sys
-import time
-
-import numpy as np
 
 import echogym  # noqa: F401  (registers the envs)
+import scaling
 from bench_server import BenchServer, machine_description
+from env_rate import COUPLED, env_steps_per_s, pin_process
 from envs_client import async_gain, collector_ratio, table_lines
-from echogym.gym_vector import EchoVectorEnv
 
 TARGETS = {"scan_20hz": 400.0, "scan_500hz_batch16": 8000.0, "scan_20hz_depth64": 200.0}
 HYBRID_20HZ = {"kind": "hybrid_force_motion", "control_freq": 20.0}
@@ -76,95 +72,6 @@ WORKLOADS = {
 # Amplitude of the uniform random actions per workload (default 0.3); the hybrid
 # workloads hold the probe on the skin.
 ACTION_SCALE = {"scan_20hz_hybrid": 0.0, "scan_20hz_hybrid_ultrasound128": 0.0}
-COUPLED: dict[str, list[float]] = {}
-
-
-def pin_process(pid: int, cpu: int) -> None:
-    """Pin every thread of a running process to `cpu` (threads started before do not
-    inherit a later affinity change)."""
-    for tid in os.listdir(f"/proc/{pid}/task"):
-        os.sched_setaffinity(int(tid), {cpu})
-
-
-def env_steps_per_s(server: str, env_id: str, num_envs: int, config: dict, seconds: float,
-                    name: str = "", scale: float = 0.3) -> float:
-    """Step a batch with random actions for `seconds`; env-steps/s. With the ultrasound
-    image, the mean `us_coupled` of the last step goes to COUPLED[name]."""
-    envs = EchoVectorEnv(env_id, num_envs, server=server, **config)
-    rng = np.random.default_rng(0)
-    actions = [rng.uniform(-scale, scale, envs.action_space.shape).astype(np.float32)
-               for _ in range(16)]
-    envs.reset(seed=0)
-    for k in range(5):
-        envs.step(actions[k % 16])
-    steps, started = 0, time.perf_counter()
-    while time.perf_counter() - started < seconds:
-        _, _, _, _, info = envs.step(actions[steps % 16])
-        steps += 1
-    elapsed = time.perf_counter() - started
-    if "us_coupled" in info:
-        COUPLED.setdefault(name, []).append(float(np.mean(info["us_coupled"])))
-    envs.close()
-    return steps * num_envs / elapsed
-
-
-SCALING_ENVS = 16
-
-
-def scaling(seconds: float, repeats: int, env_step: dict | None) -> tuple[list[str], dict]:
-    """env-steps/s of UltrasoundScan-v0 at 20 Hz, 16 envs, at 1 and 2 server threads, and
-    the model's prediction for 4/8/16 threads (see docs/benchmarks.md)."""
-    env_id, _, config = WORKLOADS["scan_20hz"]
-    rates: dict[int, list[float]] = {}
-    null: list[float] = []
-    for threads in (1, 2):
-        cpus = {SERVER_CPU} if threads == 1 else set(range(os.cpu_count() or 1))
-        os.sched_setaffinity(0, {CLIENT_CPU} if threads == 1 else cpus)
-        with BenchServer(f"envs-scaling-{threads}", "--threads", str(threads)) as server:
-            for tid in os.listdir(f"/proc/{server.process.pid}/task"):
-                os.sched_setaffinity(int(tid), cpus)
-            rates[threads] = [env_steps_per_s(server.name, env_id, SCALING_ENVS, config, seconds)
-                              for _ in range(repeats)]
-            if threads == 1:
-                # The dispatcher and transport alone: a batch of Null-v0 envs.
-                null = [env_steps_per_s(server.name, "echogym/Null-v0", SCALING_ENVS, {}, seconds)
-                        for _ in range(repeats)]
-            print(f"scaling {threads} threads: {rates[threads]}", file=sys.stderr)
-    os.sched_setaffinity(0, {CLIENT_CPU})
-    med = {t: statistics.median(v) for t, v in rates.items()}
-    result: dict = {"envs": SCALING_ENVS, "runs": rates, "median": med,
-                    "efficiency_2": med[2] / (2 * med[1]),
-                    "null_runs": null, "null_median": statistics.median(null)}
-    lines = [
-        "",
-        f"Scaling, UltrasoundScan-v0 20 Hz, {SCALING_ENVS} envs in one batch: 1 server thread "
-        f"(pinned) {med[1]:,.0f} env-steps/s (runs {', '.join(f'{r:,.0f}' for r in rates[1])}); "
-        f"2 threads (both cores, shared with the client) {med[2]:,.0f} "
-        f"(runs {', '.join(f'{r:,.0f}' for r in rates[2])}); efficiency at 2: "
-        f"{result['efficiency_2']:.2f}. Null-v0 batch {SCALING_ENVS}, 1 thread: "
-        f"{result['null_median']:,.0f} env-steps/s.",
-    ]
-    # Model (docs/benchmarks.md): an env step costs c on a worker thread (envs spread over
-    # N threads), plus δ serial in the dispatcher and transport (Null-v0's whole cost):
-    # rate(N) = 1 / (c/N + δ). c from 1 thread in the server; c_inproc (benches/env_step)
-    # shows how much of c is the env itself.
-    delta = 1.0 / result["null_median"]
-    c = max(1.0 / med[1] - delta, 0.0)
-    predicted = {n: 1.0 / (c / n + delta) for n in (1, 2, 4, 8, 16)}
-    result["model"] = {"per_env_step_s": c, "dispatcher_per_env_step_s": delta,
-                       "predicted": predicted,
-                       "efficiency": {n: predicted[n] / (n * predicted[1]) for n in predicted}}
-    inproc = (f" (in-process, benches/env_step.rs: "
-              f"{1e6 / env_step['env_steps_per_s']['median']:,.0f} µs)" if env_step else "")
-    lines.append(
-        f"Model (unchecked beyond 2 threads): per-env step c = {c * 1e6:,.0f} µs{inproc}, "
-        f"dispatcher δ = {delta * 1e6:.2f} µs per env step; rate(N) = 1/(c/N + δ) predicts "
-        + ", ".join(f"{n} threads {predicted[n]:,.0f} ({result['model']['efficiency'][n]:.3f})"
-                    for n in (2, 4, 8, 16))
-        + " env-steps/s (efficiency), with ≥ 1 env per thread and memory bandwidth not binding.")
-    return lines, result
-
-
 def robosuite(seconds: float, repeats: int) -> dict | None:
     """Run the robosuite side in its own virtualenv; None when unavailable."""
     python = os.path.join(os.path.dirname(__file__), ".venv-peers", "bin", "python")
@@ -187,7 +94,9 @@ def main() -> None:
     parser.add_argument("--ultrasound-json", help="output of the ultrasound imaging bench")
     parser.add_argument("--env-step-json", help="output of benches/env_step.rs (per-env cost)")
     parser.add_argument("--scaling", action="store_true",
-                        help="also measure 1 and 2 server threads and model 4/8/16")
+                        help="also the scaling curve (benches/scaling.py)")
+    parser.add_argument("--env-step-bin",
+                        help="benches/env_step.rs's binary, for --scaling's machine-alone figures")
     parser.add_argument("--no-client", action="store_true",
                         help="skip the collector ratio and the async gain (envs_client.py)")
     args = parser.parse_args()
@@ -195,7 +104,7 @@ def main() -> None:
 
     runs: dict[str, list[float]] = {}
     with BenchServer("envs-bench", "--threads", "1") as server:
-        pin_process(server.process.pid, SERVER_CPU)
+        pin_process(server.process.pid, {SERVER_CPU})
         for name, (env_id, n, config) in WORKLOADS.items():
             runs[name] = []
             for _ in range(args.repeats):
@@ -208,8 +117,15 @@ def main() -> None:
     if args.env_step_json:
         with open(args.env_step_json) as f:
             env_step = json.load(f)
-    scaling_lines, scaling_result = (scaling(args.seconds, args.repeats, env_step)
-                                     if args.scaling else ([], None))
+    scaling_lines, scaling_result = [], None
+    if args.scaling:
+        threads = [n for n in scaling.THREADS if n <= len(os.sched_getaffinity(0))]
+        alone = (scaling.machine_alone(args.env_step_bin, args.seconds, threads)
+                 if args.env_step_bin else None)
+        scaling_result = scaling.measure(args.seconds, args.repeats, threads,
+                                         list(scaling.BATCHES), alone)
+        scaling_lines = ["", "Scaling (benches/scaling.py):", "", *scaling.report(scaling_result)]
+        os.sched_setaffinity(0, {CLIENT_CPU})
     os.sched_setaffinity(0, set(range(os.cpu_count() or 1)))
     collector = None
     if not args.no_client:
@@ -306,9 +222,7 @@ def main() -> None:
     if peers:
         kv += f" ratio_vs_lift={result['ratio_scan20_vs_lift20']:.2f}"
     if scaling_result:
-        kv += (f" scaling_1t={scaling_result['median'][1]:.0f}"
-               f" scaling_2t={scaling_result['median'][2]:.0f}"
-               f" scaling_eff2={scaling_result['efficiency_2']:.2f}")
+        kv += " " + scaling.result_kv(scaling_result)
     if collector is not None:
         kv += f" collector_ratio={collector['ratio']:.2f}"
     if gain is not None:

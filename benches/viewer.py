@@ -35,6 +35,7 @@ import numpy as np
 
 import echogym  # noqa: F401  (registers the envs)
 from bench_server import BenchServer, machine_description
+from env_rate import pin_process
 from echogym.gym_vector import EchoVectorEnv
 from echogym.rerun_recorder import RerunVectorRecorder
 
@@ -42,12 +43,6 @@ SERVER_CPU, CLIENT_CPU = 1, 0
 SCAN = "echogym/UltrasoundScan-v0"
 BASE = {"task": {"early_termination": False}}
 NUM_ENVS = 8
-
-
-def pin_process(pid: int, cpu: int) -> None:
-    """Pin every thread of a running process to `cpu`."""
-    for tid in os.listdir(f"/proc/{pid}/task"):
-        os.sched_setaffinity(int(tid), {cpu})
 
 
 def steps_per_s(server: str, num_envs: int, config: dict, seconds: float,
@@ -88,7 +83,7 @@ def off_with_binary(binary: str | None, name: str, seconds: float) -> float:
         os.environ["ECHOGYM_BIN"] = binary
     try:
         with BenchServer(name, "--threads", "1") as server:
-            pin_process(server.process.pid, SERVER_CPU)
+            pin_process(server.process.pid, {SERVER_CPU})
             return steps_per_s(server.name, NUM_ENVS, {}, seconds)
     finally:
         if previous is None:
@@ -124,7 +119,7 @@ def main() -> None:
     os.sched_setaffinity(0, {CLIENT_CPU})
     runs: dict[str, list[float]] = {name: [] for name in [*WORKLOADS, "one_env", *CAMERAS]}
     with BenchServer("viewer-bench", "--threads", "1") as server:
-        pin_process(server.process.pid, SERVER_CPU)
+        pin_process(server.process.pid, {SERVER_CPU})
         # Interleave the workloads so a neighbour's load spreads over all of them.
         for _ in range(args.repeats):
             for name, (_, config, every) in WORKLOADS.items():

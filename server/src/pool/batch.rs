@@ -115,6 +115,9 @@ pub struct EnvBatch {
     layout: BatchLayout,
     mode: AutoresetMode,
     slots: Vec<Slot>,
+    /// Each env's wall time the last time it stepped on the pool (the pool hands the
+    /// longest out first, see [`WorkerPool::for_each`]).
+    last_step_ns: Vec<u64>,
     clipped: Vec<f32>,
     step_cost_ns: f64,
     /// Measured cost of a whole exchange run on one thread, in ns, per op (steps, resets);
@@ -208,6 +211,7 @@ impl EnvBatch {
             spec,
             layout,
             mode,
+            last_step_ns: vec![0; slots.len()],
             slots,
             step_cost_ns: 0.0,
             serial_cost_ns: [0.0; 2],
@@ -291,8 +295,14 @@ impl EnvBatch {
                 Some(usage.cost_ns())
             }
             Runner::Pool(pool) => Some(
-                pool.for_each(&mut self.slots, &mut jobs, cost, work)
-                    .cost_ns,
+                pool.for_each(
+                    &mut self.slots,
+                    &mut jobs,
+                    &mut self.last_step_ns,
+                    cost,
+                    work,
+                )
+                .cost_ns,
             ),
         };
         let elapsed = started.elapsed();

@@ -2,12 +2,13 @@
 //!
 //! Parallelism is not free (waking workers costs microseconds), so a batch is split
 //! only when its envs are expensive enough: the pool keeps no state, the batch passes
-//! its measured per-env cost and the pool picks the chunk size.
+//! its measured per-env cost (to decide whether to split and in what grains) and each
+//! env's last step time (to hand out the longest first).
 
+use std::cmp::Reverse;
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
-
-use rayon::prelude::*;
 
 /// Below this estimated batch cost, stepping on the calling thread beats waking workers.
 const PARALLEL_THRESHOLD_NS: f64 = 20_000.0;
@@ -92,10 +93,20 @@ impl WorkerPool {
     /// Run `work` on every `(item, job)` pair, in parallel when `cost_per_item_ns` makes
     /// it worthwhile. Returns how many threads it used at most (1: this one) and what the
     /// work cost, summed over the threads ([`ThreadUsage::cost_ns`]).
+    ///
+    /// `last_ns[i]` is item `i`'s wall time the last time it ran in parallel; this call
+    /// orders by it and overwrites it. In parallel, the items are handed out one by one
+    /// (in grains of ≈ 10 µs of work when they are cheap), longest first, to whichever
+    /// thread is free. A batch ends when its slowest thread does, and env steps differ by
+    /// 4× (an env in contact against one in free space) while a VM's cores differ in
+    /// speed: fixed equal shares left threads idle (16 threads: 6,533 env-steps/s against
+    /// 9,324 longest-first, docs/benchmarks.md "Scaling"); greedy longest-first keeps the
+    /// makespan within 4/3 of the optimum.
     pub fn for_each<A: Send, B: Send>(
         &self,
         items: &mut [A],
         jobs: &mut [B],
+        last_ns: &mut [u64],
         cost_per_item_ns: f64,
         work: impl Fn(&mut A, &mut B) + Sync + Send,
     ) -> Spread {
@@ -111,22 +122,45 @@ impl WorkerPool {
                 cost_ns: usage.cost_ns(),
             };
         }
-        // Chunks of at least ~threshold/2 of work each, and at most one per thread.
-        let per_chunk = ((PARALLEL_THRESHOLD_NS / 2.0) / cost_per_item_ns.max(1.0)).ceil() as usize;
-        let chunk = per_chunk.max(n.div_ceil(self.threads)).max(1);
+        let grain = ((PARALLEL_THRESHOLD_NS / 2.0) / cost_per_item_ns.max(1.0)).ceil() as usize;
+        let grain = grain.clamp(1, n.div_ceil(self.threads));
+        let mut queue: Vec<_> = items
+            .iter_mut()
+            .zip(jobs.iter_mut())
+            .zip(last_ns.iter_mut())
+            .collect();
+        queue.sort_by_key(|(_, last)| Reverse(**last));
+        let queue = Mutex::new(queue.into_iter());
+        let workers = n.div_ceil(grain).min(self.threads);
         let cost_ns = AtomicU64::new(0);
+        let drain = || {
+            let usage = ThreadUsage::now();
+            loop {
+                let taken: Vec<_> = {
+                    let mut queue = queue.lock().unwrap_or_else(|e| e.into_inner());
+                    queue.by_ref().take(grain).collect()
+                };
+                if taken.is_empty() {
+                    break;
+                }
+                for ((a, b), last) in taken {
+                    let started = Instant::now();
+                    work(a, b);
+                    *last = started.elapsed().as_nanos() as u64;
+                }
+            }
+            cost_ns.fetch_add(usage.cost_ns(), Ordering::Relaxed);
+        };
         self.pool.install(|| {
-            items
-                .par_chunks_mut(chunk)
-                .zip(jobs.par_chunks_mut(chunk))
-                .for_each(|(a, b)| {
-                    let usage = ThreadUsage::now();
-                    a.iter_mut().zip(b.iter_mut()).for_each(|(a, b)| work(a, b));
-                    cost_ns.fetch_add(usage.cost_ns(), Ordering::Relaxed);
-                });
+            rayon::scope(|scope| {
+                for _ in 1..workers {
+                    scope.spawn(|_| drain());
+                }
+                drain();
+            })
         });
         Spread {
-            threads: n.div_ceil(chunk).min(self.threads),
+            threads: workers,
             cost_ns: cost_ns.into_inner(),
         }
     }
@@ -239,10 +273,15 @@ mod tests {
         let pool = WorkerPool::new(2, 0).unwrap();
         let mut items = vec![0u64; 8];
         let mut jobs = vec![(); 8];
-        let spread = pool.for_each(&mut items, &mut jobs, 1e6, |item, _| {
+        let mut last = vec![0u64; 8];
+        let spread = pool.for_each(&mut items, &mut jobs, &mut last, 1e6, |item, _| {
             *item = work(2_000_000);
         });
         assert!(items.iter().all(|&i| i != 0));
+        assert!(
+            last.iter().all(|&ns| ns > 0),
+            "each item's time is kept: {last:?}"
+        );
         assert_eq!(spread.threads, 2);
         // The sum over both threads, not the wall time of the slower one (CPU time: the
         // same on a loaded machine; a generous band for cache and frequency effects).
@@ -251,5 +290,24 @@ mod tests {
             "{} ns for 8 units of {unit} ns",
             spread.cost_ns
         );
+    }
+
+    #[test]
+    fn for_each_hands_out_the_longest_items_first() {
+        // Item 5 and item 2 took longest last time: the two threads start with them.
+        let pool = WorkerPool::new(2, 0).unwrap();
+        let mut items: Vec<usize> = (0..8).collect();
+        let mut jobs = vec![usize::MAX; 8];
+        let mut last = vec![10u64, 10, 900, 10, 10, 1000, 10, 10];
+        let ticket = AtomicU64::new(0);
+        pool.for_each(&mut items, &mut jobs, &mut last, 1e6, |_, job| {
+            *job = ticket.fetch_add(1, Ordering::SeqCst) as usize;
+            work(200_000);
+        });
+        let mut first_two = [jobs[5], jobs[2]];
+        first_two.sort();
+        assert_eq!(first_two, [0, 1], "start order by item: {jobs:?}");
+        // Each item's time is measured afresh.
+        assert!(last.iter().all(|&ns| ns > 0 && ns != 10), "{last:?}");
     }
 }
