@@ -42,6 +42,13 @@ pub struct Model {
     pub surface_offset: f64,
     /// Power-spring exponent (1: linear).
     pub exponent: f64,
+    /// Depth scale of an exponential (Fung) stiffening law instead of the power law \[m\].
+    #[serde(default)]
+    pub stiffening_depth_m: Option<f64>,
+    /// The deepest press the stiffening law was fitted on \[m\] (its equivalent exponent
+    /// is reported over 2 mm to this depth).
+    #[serde(default)]
+    pub deepest_press_m: f64,
     /// Maxwell branch, if any.
     pub relaxation: Option<Relaxation>,
     /// A second Maxwell branch (relaxation on two time scales), if any.
@@ -113,6 +120,8 @@ impl Model {
             damping,
             surface_offset,
             exponent: 1.0,
+            stiffening_depth_m: None,
+            deepest_press_m: 0.0,
             relaxation: None,
             second_relaxation: None,
             breathing: None,
@@ -186,6 +195,7 @@ impl Setup {
         t.stiffness = model.stiffness / MASS_SHARE;
         t.damping = model.damping / MASS_SHARE;
         t.exponent = model.exponent;
+        t.stiffening_depth_m = model.stiffening_depth_m;
         t.relaxation = model.relaxation.clone();
         t.second_relaxation = model.second_relaxation.clone();
         t.moving_mass = model.moving_mass;

@@ -57,6 +57,7 @@ fn model_json(m: &Model) -> serde_json::Value {
         "damping": m.damping,
         "surface_offset_m": m.surface_offset,
         "exponent": m.exponent,
+        "stiffening_depth_m": m.stiffening_depth_m,
         "relaxation": m.relaxation,
         "second_relaxation": m.second_relaxation,
         "breathing_freq_hz": m.breathing.map(|b| b.0),

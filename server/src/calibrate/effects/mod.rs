@@ -10,7 +10,7 @@
 //! | `sensor_filter` | `LP(F) − F`, first order: lags and attenuates fast changes | sensor low-pass (`ft_sensor.low_pass_hz`) |
 //! | `bias_drift` | `b₀ + Δ·(t_session − t₀)/T`, also in free air | drifting sensor bias (`ft_sensor.bias_drift`) |
 //! | `tissue_inertia` | `−m·a_z` while touching | moving mass (`torso.moving_mass`) |
-//! | `nonlinear_stiffness` | `k·(δ₀(δ/δ₀)ⁿ − δ)` plus a stiffness change, in contact | power spring (`torso.exponent`) |
+//! | `nonlinear_stiffness` | `k·(δ₀(δ/δ₀)ⁿ − δ)` or `k·(δ₀(e^{δ/d} − 1)/(e^{δ₀/d} − 1) − δ)` (the better) plus a stiffness change, in contact | stiffening spring: power law (`torso.exponent`) or Fung's exponential (`torso.stiffening_depth_m`) |
 //! | `viscoelastic_relaxation` | `k_m·(δ − x)`, `ẋ = (δ − x)/τ`: relaxes during holds, memory between pushes | Maxwell branch (`torso.relaxation`) |
 //! | `depth_dependent_damping` | `−r·c·(δ/10 mm)^p·v_z` in contact | depth-dependent damping law (`torso.depth_damping`) |
 //! | `breathing_motion` | `k·a·sin φ(t)` while touching, 0.1–0.6 Hz; per recording a phase, a rate and a linear rate change; `a` from a rise profile over the top | breathing law (`breathing`, `edge_rise`) |

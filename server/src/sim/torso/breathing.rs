@@ -8,11 +8,11 @@
 //! exactly `a(t)` above its rest height. The drive adds its own volume to the torso's rest
 //! volume (inhaled air), so volume preservation does not fight it. Because the drive is a
 //! force and the springs are unchanged, a probe held in place feels breathing as a force
-//! oscillating at the breathing rate. With a power spring (`exponent ≠ 1`) the drive is
-//! what it is physically, a motion of the tissue's foundation: each particle's spring
-//! acts on `u − a(t)·d_i/k_i` instead of `u`, so a probe pressed deep into stiffening
-//! tissue feels breathing more strongly than one resting on the skin (for a linear
-//! spring the two are the same force).
+//! oscillating at the breathing rate. With a stiffening law (`exponent ≠ 1` or
+//! `stiffening_depth_m`) the drive is what it is physically, a motion of the tissue's
+//! foundation: its force scales with the springs' stiffness, which grows with the
+//! indentation, so a probe pressed deep into stiffening tissue feels breathing more
+//! strongly than one resting on the skin.
 //!
 //! `a(t) = A·(1 − cos φ)/2` (0 at full exhalation), `φ̇ = 2π·f(t)`, and the rate drifts
 //! slowly: `f(t) = f₀·(1 + δ(t))` with `δ` an Ornstein–Uhlenbeck process (time constant
@@ -24,7 +24,6 @@ use rand_pcg::Pcg64Mcg;
 use serde::{Deserialize, Serialize};
 
 use super::law::{LawContext, LawTerms, ParticleLaw};
-use super::tissue_laws::power_law;
 use super::torso::Torso;
 
 /// Time constant of the breathing-rate drift \[s\].
@@ -111,9 +110,9 @@ pub fn rise_profile(xy: [f64; 2], half: [f64; 2], edge_rise: f64) -> f64 {
 pub struct Breathing {
     params: BreathingParams,
     drive: Vec<f64>,
-    /// Particle spring stiffness [N/m] and exponent, for the foundation motion of a
-    /// power spring (`None`: linear springs).
-    power: Option<(Vec<f64>, f64)>,
+    /// The elastic elements' scale at rest (a stiffening law's secant there, 1 without
+    /// one): the drive was calibrated at it.
+    rest_scale: f64,
     response: Vec<f64>,
     volume_per_metre: f64,
     phase: f64,
@@ -161,18 +160,9 @@ impl Breathing {
         let from_force = torso.static_response(&spring, 0.0);
         let from_volume = torso.static_response(&vec![0.0; n], volume);
         let gain = (1.0 - from_volume[centre]) / from_force[centre];
-        let exponent = p.exponent;
-        let power = ((exponent - 1.0).abs() > 1e-12).then(|| {
-            let k: Vec<f64> = torso
-                .masses()
-                .iter()
-                .zip(&layout.rest)
-                .map(|(m, r)| m * p.stiffness * p.stiffness_scale([r[0], r[1]]))
-                .collect();
-            (k, exponent)
-        });
+        let rest_scale = p.stiffening().map_or(1.0, |law| law.secant(0.0));
         Ok(Self {
-            power,
+            rest_scale,
             drive: spring.iter().map(|k| gain * k).collect(),
             response: from_force
                 .iter()
@@ -262,29 +252,12 @@ impl ParticleLaw for Breathing {
     }
 
     fn add_terms(&self, ctx: &LawContext<'_>, out: &mut LawTerms) {
-        let a = self.offset();
-        match &self.power {
-            None => {
-                for (f, d) in out.force.iter_mut().zip(&self.drive) {
-                    *f += a * d;
-                }
-            }
-            Some((k, n)) => {
-                // The springs' force at u − shift replaces theirs at u.
-                let particles = self.drive.iter().zip(k).zip(ctx.u).enumerate();
-                for (i, ((&drive, &k), &u)) in particles {
-                    if drive == 0.0 {
-                        continue;
-                    }
-                    let shift = a * drive / k;
-                    let (moved, moved_slope) = power_law(u - shift, *n);
-                    let (still, still_slope) = power_law(u, *n);
-                    out.force[i] += k * (still - moved);
-                    out.stiffness[i] += k * (moved_slope - still_slope);
-                }
-            }
+        // A motion of the springs' foundation: its force grows with their stiffness.
+        let a = self.offset() * ctx.elastic_scale / self.rest_scale;
+        for (f, d) in out.force.iter_mut().zip(&self.drive) {
+            *f += a * d;
         }
-        out.volume_offset += a * self.volume_per_metre;
+        out.volume_offset += self.offset() * self.volume_per_metre;
     }
 
     fn advance(&mut self, ctx: &LawContext<'_>) {
@@ -418,6 +391,7 @@ mod tests {
             v: &empty,
             mass: &empty,
             rest: &[],
+            elastic_scale: 1.0,
         };
         let mut worst: f64 = 0.0;
         for step in 1..=3500 {

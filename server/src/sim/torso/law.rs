@@ -19,6 +19,10 @@ pub struct LawContext<'a> {
     pub mass: &'a [f64],
     /// Rest positions (world) \[m\].
     pub rest: &'a [[f64; 3]],
+    /// Scale of every elastic element this step: a stiffening law's secant at the
+    /// skin's deepest indentation (`TorsoParams::exponent`, `stiffening_depth_m`), 1
+    /// without one. Elastic laws (the linear spring, breathing's drive on it) apply it.
+    pub elastic_scale: f64,
 }
 
 /// Per-particle terms, accumulated over laws.
@@ -84,7 +88,7 @@ impl ParticleLaw for LinearSpringDamper {
 
     fn add_terms(&self, ctx: &LawContext<'_>, out: &mut LawTerms) {
         for i in 0..ctx.u.len() {
-            let (k, c) = (self.stiffness[i], self.damping[i]);
+            let (k, c) = (self.stiffness[i] * ctx.elastic_scale, self.damping[i]);
             out.force[i] -= k * ctx.u[i] + c * ctx.v[i];
             out.stiffness[i] += k;
             out.damping[i] += c;

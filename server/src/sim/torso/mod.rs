@@ -34,5 +34,7 @@ pub use layout::ShellLayout;
 pub use params::{SiteStiffness, TorsoParamError, TorsoParams};
 pub use relaxation::StructuralRelaxation;
 pub use skin::Skin;
-pub use tissue_laws::{DepthDamping, POWER_REFERENCE_DEPTH, PowerSpring, Relaxation, power_law};
+pub use tissue_laws::{
+    DepthDamping, POWER_REFERENCE_DEPTH, Relaxation, Stiffening, exponential_law, power_law,
+};
 pub use torso::Torso;

@@ -71,9 +71,13 @@ pub struct TorsoParams {
     /// opposing the probe's sliding velocity while it touches (gel films are viscous).
     /// Default 0.
     pub friction_viscous: f64,
-    /// Exponent of the particle springs (1: linear; > 1: stiffening tissue, see
-    /// [`super::PowerSpring`]). Default 1.
+    /// Exponent of the stiffening law (1: linear; > 1: stiffening tissue, see
+    /// [`super::Stiffening`]). Default 1.
     pub exponent: f64,
+    /// Depth scale `d` \[m\] of Fung's exponential stiffening law instead of a power law
+    /// (see [`super::Stiffening`]; set one of this and `exponent`). Default none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stiffening_depth_m: Option<f64>,
     /// Viscoelastic relaxation: a Maxwell branch on every elastic element
     /// ([`super::StructuralRelaxation`]). Default none.
     pub relaxation: Option<super::Relaxation>,
@@ -134,6 +138,7 @@ impl Default for TorsoParams {
             friction_viscous: 0.0,
             depth_damping: None,
             exponent: 1.0,
+            stiffening_depth_m: None,
             relaxation: None,
             second_relaxation: None,
             moving_mass: 0.0,
@@ -299,6 +304,20 @@ impl TorsoParams {
             "in [0.5, 4]",
             self.exponent,
         )?;
+        if let Some(depth) = self.stiffening_depth_m {
+            check(
+                "stiffening_depth_m",
+                (0.002..=0.2).contains(&depth),
+                "in [0.002, 0.2] (2 mm to 20 cm)",
+                depth,
+            )?;
+            check(
+                "exponent",
+                self.exponent == 1.0,
+                "1 when stiffening_depth_m is set (the two are forms of one law: set one)",
+                self.exponent,
+            )?;
+        }
         for (r, [ratio, tau]) in [
             (&self.relaxation, ["relaxation.ratio", "relaxation.tau_s"]),
             (
@@ -340,6 +359,11 @@ impl TorsoParams {
     /// World z of the top surface at rest \[m\].
     pub fn top_z(&self) -> f64 {
         self.bottom_z + self.size[2]
+    }
+
+    /// The particle springs' stiffening law, `None` for linear springs.
+    pub fn stiffening(&self) -> Option<super::Stiffening> {
+        super::Stiffening::from_keys(self.exponent, self.stiffening_depth_m)
     }
 
     /// Stiffness scale of the particle at `xy` from `stiffness_sites`.

@@ -8,7 +8,7 @@ use super::params::{TorsoParamError, TorsoParams};
 use super::relaxation::StructuralRelaxation;
 use super::skin::Skin;
 use super::solver::{ContactRow, System, Workspace, conjugate_gradient};
-use super::tissue_laws::{DepthDamping, POWER_REFERENCE_DEPTH, PowerSpring};
+use super::tissue_laws::{DepthDamping, POWER_REFERENCE_DEPTH, Stiffening};
 use crate::sim::vec3::{add, cross, scale, sub};
 
 /// Relative residual at which the implicit solve stops.
@@ -54,6 +54,11 @@ pub struct Torso {
     damping: Vec<f64>,
     /// `1 + ratio·(δ/10 mm)^p` of depth-dependent damping this step (1 without it).
     damping_scale: f64,
+    /// The stiffening law, if any (see [`Stiffening`]).
+    stiffening: Option<Stiffening>,
+    /// Its secant at this step's deepest indentation: the scale of every elastic
+    /// element (1 without a law).
+    stiffening_scale: f64,
     u: Vec<f64>,
     v: Vec<f64>,
     t: f64,
@@ -106,13 +111,8 @@ impl Torso {
             stiffness: spring.clone(),
             damping: damping.clone(),
         };
-        let mut laws: Vec<Box<dyn ParticleLaw>> = vec![Box::new(law)];
-        if (params.exponent - 1.0).abs() > 1e-12 {
-            laws.push(Box::new(PowerSpring {
-                stiffness: spring.clone(),
-                exponent: params.exponent,
-            }));
-        }
+        let laws: Vec<Box<dyn ParticleLaw>> = vec![Box::new(law)];
+        let stiffening = params.stiffening();
         let relaxation = StructuralRelaxation::new(
             params.relaxation.iter().chain(&params.second_relaxation),
             spring.len(),
@@ -137,6 +137,8 @@ impl Torso {
             elastic_scale,
             damping,
             damping_scale: 1.0,
+            stiffening_scale: stiffening.map_or(1.0, |law| law.secant(0.0)),
+            stiffening,
             previous_probe_velocity: None,
             u: vec![0.0; n],
             v: vec![0.0; n],
@@ -425,6 +427,7 @@ impl Torso {
             v: &self.v,
             mass: &self.mass,
             rest: &self.layout.rest,
+            elastic_scale: self.stiffening_scale,
         };
         for law in &mut self.laws {
             law.advance(&ctx);
@@ -437,6 +440,9 @@ impl Torso {
     fn assemble(&mut self, dt: f64) {
         let n = self.u.len();
         self.terms.reset(n);
+        if let Some(law) = self.stiffening {
+            self.stiffening_scale = law.secant(self.skin_indentation());
+        }
         let ctx = LawContext {
             t: self.t,
             dt,
@@ -444,11 +450,12 @@ impl Torso {
             v: &self.v,
             mass: &self.mass,
             rest: &self.layout.rest,
+            elastic_scale: self.stiffening_scale,
         };
         for law in &self.laws {
             law.add_terms(&ctx, &mut self.terms);
         }
-        let ground_k = self.edge_k;
+        let ground_k = self.edge_k * self.stiffening_scale;
         let ground_c = self.edge_c;
         for i in 0..n {
             let g = self.layout.ground[i];
@@ -459,15 +466,17 @@ impl Torso {
                 + dt * (self.terms.force[i] + self.terms.damping[i] * self.v[i])
                 - dt * g * ground_k * self.u[i];
         }
+        let edge_k = self.edge_k * self.stiffening_scale;
         for &(i, j, w) in &self.layout.edges {
-            let f = dt * self.edge_k * w * (self.u[i] - self.u[j]);
+            let f = dt * edge_k * w * (self.u[i] - self.u[j]);
             self.rhs[i] -= f;
             self.rhs[j] += f;
         }
         if self.volume_k > 0.0 {
             let dv = self.volume_change() - self.terms.volume_offset;
+            let volume_k = self.volume_k * self.stiffening_scale;
             for (r, a) in self.rhs.iter_mut().zip(&self.layout.area) {
-                *r -= dt * self.volume_k * dv * a;
+                *r -= dt * volume_k * dv * a;
             }
         }
         self.add_relaxation_terms(dt);
@@ -493,8 +502,7 @@ impl Torso {
         else {
             return;
         };
-        let top = self.layout.top_len();
-        let depth = self.u[..top].iter().fold(0.0f64, |m, &u| m.max(-u));
+        let depth = self.deepest_indentation();
         if depth <= 0.0 {
             return;
         }
@@ -504,6 +512,36 @@ impl Torso {
             let c = self.damping[i] + self.layout.ground[i] * self.edge_c;
             self.diag[i] += dt * growth * c;
         }
+    }
+
+    /// The skin's deepest indentation at the start of the step \[m\] (0 when none).
+    fn deepest_indentation(&self) -> f64 {
+        let top = self.layout.top_len();
+        self.u[..top].iter().fold(0.0f64, |m, &u| m.max(-u))
+    }
+
+    /// The smooth skin's indentation over the deepest particle at the start of the step
+    /// \[m\]: what a probe pressing there sees (the particle itself sits ≈ 1 mm deeper
+    /// under a 10 mm press, the skin between particles overshooting).
+    fn skin_indentation(&self) -> f64 {
+        let top = self.layout.top_len();
+        let Some((deepest, u)) = self.u[..top]
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(b.1))
+        else {
+            return 0.0;
+        };
+        if *u >= 0.0 {
+            return 0.0;
+        }
+        let [x, y, _] = self.layout.rest[deepest];
+        let depth = if self.skin.covers(x, y) {
+            -self.skin.displacement(&self.u, x, y)
+        } else {
+            -u
+        };
+        depth.max(0.0)
     }
 
     /// The relaxation branches' part of the system (see `relaxation`): their stiffness
@@ -581,16 +619,23 @@ impl Torso {
     /// `cacheable` size), else by Jacobi CG warm-started from `v`.
     fn solve(&mut self, dt: f64, cacheable: bool) {
         let area = (self.volume_k > 0.0).then_some(self.layout.area.as_slice());
+        // The elastic elements' scale: the relaxation branches' `1 + Σ ratio` on the
+        // stiffening law's secant (`+ 0.0` exactly without one).
+        let elastic = self.elastic_scale + (self.stiffening_scale - 1.0);
         let system = System {
             diag: &self.diag,
             edges: &self.layout.edges,
-            edge_coef: dt * self.edge_c * self.damping_scale
-                + dt * dt * self.edge_k * self.elastic_scale,
-            volume: area.map(|a| (a, dt * dt * self.volume_k * self.elastic_scale)),
+            edge_coef: dt * self.edge_c * self.damping_scale + dt * dt * self.edge_k * elastic,
+            volume: area.map(|a| (a, dt * dt * self.volume_k * elastic)),
             contacts: &self.rows,
         };
-        // A depth-dependent damping that changes every step would refactor every step.
-        if self.rows.is_empty() && self.damping_scale == 1.0 && !self.factor_failed {
+        // A depth-dependent damping or stiffening that changes every step would refactor
+        // every step.
+        if self.rows.is_empty()
+            && self.damping_scale == 1.0
+            && self.stiffening.is_none()
+            && !self.factor_failed
+        {
             let known_step = self.factors.iter().any(|f| f.same_step(&system));
             if cacheable && !known_step {
                 // A new step size (a nonlinear law's changed diagonal is not one: it
@@ -715,7 +760,8 @@ impl Torso {
 
     /// Diagonal of the static stiffness matrix at rest: the laws' stiffness at zero
     /// displacement plus the ground links (edges and volume are applied by `System`).
-    fn static_diagonal(&self) -> Vec<f64> {
+    /// `scale`: the elastic elements' (a stiffening law's secant, see [`Self::elastic_scale_at`]).
+    fn static_diagonal(&self, scale: f64) -> Vec<f64> {
         let n = self.u.len();
         let mut terms = LawTerms::default();
         terms.reset(n);
@@ -727,13 +773,20 @@ impl Torso {
             v: &zeros,
             mass: &self.mass,
             rest: &self.layout.rest,
+            elastic_scale: scale,
         };
         for law in &self.laws {
             law.add_terms(&ctx, &mut terms);
         }
         (0..n)
-            .map(|i| terms.stiffness[i] + self.layout.ground[i] * self.edge_k)
+            .map(|i| terms.stiffness[i] + self.layout.ground[i] * self.edge_k * scale)
             .collect()
+    }
+
+    /// The scale of the elastic elements with the skin `depth` deep (a stiffening law's
+    /// secant; 1 without one).
+    fn elastic_scale_at(&self, depth: f64) -> f64 {
+        self.stiffening.map_or(1.0, |law| law.secant(depth))
     }
 
     /// Static displacements \[m\] of the free torso (no probe) under per-particle normal
@@ -743,15 +796,17 @@ impl Torso {
     pub fn static_response(&self, force: &[f64], volume_offset: f64) -> Vec<f64> {
         let n = self.u.len();
         assert_eq!(force.len(), n, "one force per particle");
-        let diag = self.static_diagonal();
+        let scale = self.elastic_scale_at(0.0);
+        let diag = self.static_diagonal(scale);
         let rhs: Vec<f64> = (0..n)
-            .map(|i| force[i] + self.volume_k * volume_offset * self.layout.area[i])
+            .map(|i| force[i] + self.volume_k * scale * volume_offset * self.layout.area[i])
             .collect();
         let system = System {
             diag: &diag,
             edges: &self.layout.edges,
-            edge_coef: self.edge_k,
-            volume: (self.volume_k > 0.0).then_some((self.layout.area.as_slice(), self.volume_k)),
+            edge_coef: self.edge_k * scale,
+            volume: (self.volume_k > 0.0)
+                .then_some((self.layout.area.as_slice(), self.volume_k * scale)),
             contacts: &[],
         };
         let mut u = vec![0.0; n];
@@ -769,10 +824,12 @@ impl Torso {
     /// Static stiffness [N/m] of the torso under a flat, level probe face centred at
     /// `(x, y)` pressed `depth` metres below the rest surface: the exact equilibrium of
     /// the discrete model (particle, neighbour, ground and volume springs; contact
-    /// penalty in series), for documentation and validation.
+    /// penalty in series), for documentation and validation. With a stiffening law, the
+    /// secant stiffness at that depth (force / depth).
     pub fn static_probe_stiffness(&self, xy: [f64; 2], depth: f64) -> f64 {
         let n = self.u.len();
-        let diag = self.static_diagonal();
+        let scale = self.elastic_scale_at(depth);
+        let diag = self.static_diagonal(scale);
         let kc = self.params.contact_stiffness * self.sample_area;
         let mut rhs = vec![0.0; n];
         let mut rows = Vec::new();
@@ -798,9 +855,9 @@ impl Torso {
             let system = System {
                 diag: &diag,
                 edges: &self.layout.edges,
-                edge_coef: self.edge_k,
+                edge_coef: self.edge_k * scale,
                 volume: (self.volume_k > 0.0)
-                    .then_some((self.layout.area.as_slice(), self.volume_k)),
+                    .then_some((self.layout.area.as_slice(), self.volume_k * scale)),
                 contacts: &rows,
             };
             conjugate_gradient(&system, &rhs, &mut u, 1e-12, 10_000, &mut ws);
@@ -1135,5 +1192,66 @@ mod tests {
             (b[0] - a[0] + 40.0 * 0.02).abs() < 0.05,
             "viscous {b:?} vs {a:?}"
         );
+    }
+}
+
+#[cfg(test)]
+mod stiffening_tests {
+    use super::*;
+    use crate::sim::torso::ProbeKinematics;
+
+    /// fz of a probe held `depth` below the rest surface at the centre, settled.
+    fn held(params: TorsoParams, depth: f64) -> f64 {
+        let mut torso = Torso::new(params, ProbeFace::default()).unwrap();
+        let top = torso.params().top_z();
+        let probe = ProbeKinematics::upright([0.0, 0.0, top - depth], [0.0, 0.0, 0.0]);
+        let mut f = 0.0;
+        for _ in 0..1500 {
+            f = torso.step(0.002, Some(&probe)).force[2];
+        }
+        f
+    }
+
+    /// Log–log slope of the held force over 2–15 mm.
+    fn probe_exponent(params: &TorsoParams) -> f64 {
+        let points: Vec<(f64, f64)> = [0.002, 0.004, 0.007, 0.010, 0.015]
+            .iter()
+            .map(|&d: &f64| (d.ln(), held(params.clone(), d).ln()))
+            .collect();
+        let mx = points.iter().map(|p| p.0).sum::<f64>() / points.len() as f64;
+        let my = points.iter().map(|p| p.1).sum::<f64>() / points.len() as f64;
+        let sxy: f64 = points.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+        let sxx: f64 = points.iter().map(|p| (p.0 - mx).powi(2)).sum();
+        sxy / sxx
+    }
+
+    #[test]
+    fn the_probe_feels_the_stiffening_law() {
+        // Particle springs each on their own displacement gave the probe 1.31 for an
+        // exponent of 2 (neighbours dragged along stay shallower); a law of the
+        // indentation gives the probe the law: 1.96 for 2, 1.83 for a Fung law of 1.95
+        // (the contact's own compliance, in series, flattens a steep law a little).
+        let linear = probe_exponent(&TorsoParams::default());
+        assert!((linear - 1.0).abs() < 0.03, "linear: {linear}");
+        for (exponent, depth_m) in [(2.0, None), (1.0, Some(0.0046))] {
+            let params = TorsoParams {
+                exponent,
+                stiffening_depth_m: depth_m,
+                ..TorsoParams::default()
+            };
+            let law = params.stiffening().unwrap();
+            let expected = law.equivalent_exponent(0.002, 0.015);
+            let felt = probe_exponent(&params);
+            assert!(
+                (felt - expected).abs() < 0.15,
+                "{law:?}: the probe feels {felt:.2}, the law is {expected:.2}"
+            );
+            // The linear torso's force at the reference depth.
+            let (with, without) = (held(params, 0.01), held(TorsoParams::default(), 0.01));
+            assert!(
+                (with / without - 1.0).abs() < 0.1,
+                "{with} N against {without} N"
+            );
+        }
     }
 }
