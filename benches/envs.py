@@ -119,11 +119,8 @@ def main() -> None:
             env_step = json.load(f)
     scaling_lines, scaling_result = [], None
     if args.scaling:
-        threads = [n for n in scaling.THREADS if n <= len(os.sched_getaffinity(0))]
-        alone = (scaling.machine_alone(args.env_step_bin, args.seconds, threads)
-                 if args.env_step_bin else None)
-        scaling_result = scaling.measure(args.seconds, args.repeats, threads,
-                                         list(scaling.BATCHES), alone)
+        scaling_result = scaling.run(args.seconds, args.repeats, list(scaling.THREADS),
+                                     list(scaling.BATCHES), args.env_step_bin)
         scaling_lines = ["", "Scaling (benches/scaling.py):", "", *scaling.report(scaling_result)]
         os.sched_setaffinity(0, {CLIENT_CPU})
     os.sched_setaffinity(0, set(range(os.cpu_count() or 1)))

@@ -124,6 +124,16 @@ def measure(seconds: float, repeats: int, thread_counts: list[int], batches: lis
     return result
 
 
+def run(seconds: float, repeats: int, threads: list[int], batches: list[int],
+        env_step_bin: str | None) -> dict:
+    """`measure` at the thread counts this machine has cores for (1 always), with the
+    machine alone when `env_step_bin` is given."""
+    cores = len(os.sched_getaffinity(0))
+    threads = sorted({1, *(n for n in threads if n <= cores)})
+    alone = machine_alone(env_step_bin, seconds, threads) if env_step_bin else None
+    return measure(seconds, repeats, threads, batches, alone)
+
+
 def report(result: dict) -> list[str]:
     alone = result.get("machine_alone")
     lines = [
@@ -183,10 +193,7 @@ def main() -> None:
     parser.add_argument("--out", default="benches/results/scaling",
                         help="path of the results without extension (.md and .json are written)")
     args = parser.parse_args()
-    cores = len(os.sched_getaffinity(0))
-    threads = sorted({1, *(n for n in args.threads if n <= cores)})
-    alone = machine_alone(args.env_step_bin, args.seconds, threads) if args.env_step_bin else None
-    result = measure(args.seconds, args.repeats, threads, args.batches, alone)
+    result = run(args.seconds, args.repeats, args.threads, args.batches, args.env_step_bin)
     lines = report(result)
     print("\n".join(lines))
     os.makedirs(os.path.dirname(args.out) or ".", exist_ok=True)
