@@ -1254,4 +1254,19 @@ mod stiffening_tests {
             );
         }
     }
+
+    #[test]
+    fn one_stiffening_law_at_a_time() {
+        let both = TorsoParams {
+            exponent: 2.0,
+            stiffening_depth_m: Some(0.005),
+            ..TorsoParams::default()
+        };
+        assert_eq!(both.validate().unwrap_err().key, "exponent");
+        let too_steep = TorsoParams {
+            stiffening_depth_m: Some(0.0005),
+            ..TorsoParams::default()
+        };
+        assert_eq!(too_steep.validate().unwrap_err().key, "stiffening_depth_m");
+    }
 }
