@@ -85,15 +85,15 @@ impl Effect for NonlinearStiffness {
         match model.stiffening_depth_m {
             Some(d) => format!(
                 "the tissue stiffens exponentially with depth (Fung's law, depth scale {:.1} mm; \
-                 as a power law over {:.0}–{:.0} mm, force ∝ depth^{:.2}); replaced the linear \
-                 particle springs with the exponential law",
+                 as a power law over {:.0}–{:.0} mm, force ∝ depth^{:.2}); the torso's elastic \
+                 elements now stiffen with the indentation by that law",
                 d * 1e3,
                 EQUIVALENT_FROM * 1e3,
                 deepest(model) * 1e3,
                 law(model).equivalent_exponent(EQUIVALENT_FROM, deepest(model)),
             ),
             None => format!(
-                "the tissue stiffens with depth (force ∝ depth^{:.2}); replaced the linear particle springs with a power law",
+                "the tissue stiffens with depth (force ∝ depth^{:.2}); the torso's elastic elements now stiffen with the indentation by that power law",
                 model.exponent
             ),
         }
