@@ -39,8 +39,16 @@ pub struct Series {
     pub residual: Vec<f64>,
     /// Probe touching the skin in the baseline replay.
     pub contact: Vec<bool>,
-    /// Depth below the fitted rest surface \[m\] (negative above).
+    /// Depth below the model's skin \[m\] (negative above): below the fitted rest
+    /// surface, plus the modelled breath's rise there (so depth-dependent signatures see
+    /// the indentation the simulator has).
     pub depth: Vec<f64>,
+    /// The modelled breath's rise of the skin under the probe \[m\] (0 without breathing).
+    pub breath_rise: Vec<f64>,
+    /// Position along the recording's path in contact \[m\] (its contact points'
+    /// principal axis, from their mean), where it slides far enough for the baseline to
+    /// fit a slope (see `geometry::SLOPE_EXTENT`); all 0 otherwise.
+    pub along_path: Vec<f64>,
     /// Probe vertical velocity [m/s] (z up).
     pub vz: Vec<f64>,
     /// Probe lateral speed [m/s].
@@ -63,6 +71,49 @@ pub struct Series {
     /// Times of the approaches from free air whose contact onsets placed the skin \[s\]
     /// (see `onset::approaches`): a surface that moves (breathing) was read there.
     pub onsets: Vec<f64>,
+}
+
+/// Position along a recording's path (see [`Series::along_path`]).
+fn along_path(rec: &Recording, contact: &[bool]) -> Vec<f64> {
+    let n = rec.len();
+    let points: Vec<[f64; 2]> = rec
+        .p
+        .iter()
+        .zip(contact)
+        .filter(|(_, c)| **c)
+        .map(|(p, _)| [p[0], p[1]])
+        .collect();
+    if points.len() < 2 {
+        return vec![0.0; n];
+    }
+    let m = points.len() as f64;
+    let centre = points
+        .iter()
+        .fold([0.0; 2], |a, p| [a[0] + p[0] / m, a[1] + p[1] / m]);
+    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+    for p in &points {
+        let (dx, dy) = (p[0] - centre[0], p[1] - centre[1]);
+        sxx += dx * dx;
+        sxy += dx * dy;
+        syy += dy * dy;
+    }
+    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    let along = [angle.cos(), angle.sin()];
+    let s = |p: &[f64; 3]| (p[0] - centre[0]) * along[0] + (p[1] - centre[1]) * along[1];
+    let (lo, hi) = points
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            let v = s(&[p[0], p[1], 0.0]);
+            (lo.min(v), hi.max(v))
+        });
+    if hi - lo <= super::geometry::SLOPE_EXTENT {
+        return vec![0.0; n];
+    }
+    rec.p
+        .iter()
+        .zip(contact)
+        .map(|(p, &c)| if c { s(p) } else { 0.0 })
+        .collect()
 }
 
 impl Series {
@@ -100,6 +151,7 @@ impl Series {
             }
         }
         let xy = sum.map(|s| s / count);
+        let along_path = along_path(rec, &prediction.contact);
         Self {
             xy,
             index,
@@ -113,6 +165,12 @@ impl Series {
             residual,
             contact: prediction.contact.clone(),
             depth: prediction.depth.clone(),
+            along_path,
+            breath_rise: if prediction.breath_rise.len() == n {
+                prediction.breath_rise.clone()
+            } else {
+                vec![0.0; n]
+            },
             vz: rec.v.iter().map(|v| v[2]).collect(),
             lateral_speed: rec.v.iter().map(|v| v[0].hypot(v[1])).collect(),
             az,

@@ -230,8 +230,12 @@ pub struct Prediction {
     pub fxy: Vec<[f64; 2]>,
     /// Whether the probe touched the skin (sensor effects excluded).
     pub contact: Vec<bool>,
-    /// Depth of the probe below the model's rest surface \[m\] (negative above).
+    /// Depth of the probe below the model's skin \[m\] (negative above): below the rest
+    /// surface, plus the modelled breath's rise of the skin there.
     pub depth: Vec<f64>,
+    /// The modelled breath's rise of the skin under the probe \[m\] (relative to the rest
+    /// surface the depth is measured from; 0 without breathing).
+    pub breath_rise: Vec<f64>,
 }
 
 /// Linear interpolation of a sampled series at time `t`.
@@ -279,6 +283,9 @@ pub struct BodyReplay {
     fx: Vec<f64>,
     fy: Vec<f64>,
     contact: Vec<bool>,
+    /// The modelled breath's rise of the skin under the probe \[m\] (empty without
+    /// breathing): the law's rise at the probe's place, less the onsets' shift.
+    rise: Vec<f64>,
     /// The torso could not be built from the model (an out-of-range candidate).
     invalid: bool,
 }
@@ -345,11 +352,13 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
             fx: Vec::new(),
             fy: Vec::new(),
             contact: Vec::new(),
+            rise: Vec::new(),
             invalid: true,
         };
     };
     let breathing = model.breathing.is_some();
     let mut breath_shift = 0.0;
+    let mut rise_law: Option<Breathing> = None;
     if let Some((common_freq, amplitude)) = model.breathing {
         let phase = model.breathing_phase.get(index).copied().unwrap_or(0.0);
         // Each recording breathes at its own rate (the rate drifts between recordings).
@@ -381,6 +390,7 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
         });
         if let Ok(law) = law {
             breath_shift = onset_breath_shift(setup, model, recording, index, &law, &params);
+            rise_law = Some(law.clone());
             let u = law.equilibrium();
             torso.set_state(&u, &vec![0.0; u.len()]);
             torso.add_law(Box::new(law));
@@ -396,6 +406,8 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
     let mut sim_fx = Vec::with_capacity(steps);
     let mut sim_fy = Vec::with_capacity(steps);
     let mut sim_contact = Vec::with_capacity(steps);
+    let mut sim_rise = Vec::with_capacity(if rise_law.is_some() { steps } else { 0 });
+    let half = [params.size[0] / 2.0, params.size[1] / 2.0];
     let mut at_rest = !breathing;
     for k in 0..steps {
         let t = t0 + k as f64 * REPLAY_DT;
@@ -403,6 +415,11 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
         let mut v = interp3(&recording.t, &recording.v, t);
         // The skin here stands `z` above the flat torso's top: shift the probe down.
         let (z, dz) = surface([p[0], p[1]], v);
+        if let Some(law) = &rise_law {
+            let xy = [p[0] - params.center_xy[0], p[1] - params.center_xy[1]];
+            let profile = rise_profile(xy, half, law.params().edge_rise);
+            sim_rise.push(law.offset_after(t - t0) * profile - breath_shift);
+        }
         p[2] -= z - breath_shift;
         v[2] -= dz;
         let clear = p[2] + REPLAY_DT * v[2].min(0.0) > top + 0.002;
@@ -432,6 +449,7 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
         fx: sim_fx,
         fy: sim_fy,
         contact: sim_contact,
+        rise: sim_rise,
         invalid: false,
     }
 }
@@ -452,6 +470,7 @@ pub fn sense(
             fxy: vec![[0.0; 2]; recording.len()],
             contact: vec![false; recording.len()],
             depth: vec![0.0; recording.len()],
+            breath_rise: vec![0.0; recording.len()],
         };
     }
     let (mut sim_f, mut sim_fx, mut sim_fy) = (body.f.clone(), body.fx.clone(), body.fy.clone());
@@ -483,7 +502,13 @@ pub fn sense(
         let k = (((t - t0) / REPLAY_DT).round() as usize).min(steps - 1);
         out.contact.push(sim_contact[k]);
         let (z, _) = surface([recording.p[i][0], recording.p[i][1]], [0.0; 3]);
-        out.depth.push(top + z - recording.p[i][2]);
+        let rise = if body.rise.is_empty() {
+            0.0
+        } else {
+            interp(sim_t, &body.rise, t)
+        };
+        out.depth.push(top + z - recording.p[i][2] + rise);
+        out.breath_rise.push(rise);
     }
     out
 }
@@ -604,6 +629,53 @@ mod tests {
             c += (w * t).sin().powi(2);
         }
         -s / c
+    }
+
+    /// With breathing modelled, the depth is below the skin the simulator has: the rest
+    /// surface's depth plus the breath's rise there, which swings by the law's amplitude
+    /// at the torso's centre and is 0 without breathing.
+    #[test]
+    fn the_depth_carries_the_modelled_breath() {
+        let torso = TorsoParams::default();
+        let setup = Setup {
+            nominal_surface_z: torso.top_z(),
+            center_xy: [0.0, 0.0],
+            sites: Vec::new(),
+            recording_sites: Vec::new(),
+            session: SessionClock::default(),
+            approaches: Vec::new(),
+            torso: torso.clone(),
+        };
+        let mut recording = oscillation(0.5, setup.nominal_surface_z);
+        let centre = torso.center_xy;
+        for p in &mut recording.p {
+            (p[0], p[1]) = (centre[0], centre[1]);
+        }
+        let still = Model::baseline(1324.17, 17.59, 0.0);
+        let plain = replay(&setup, &still, &recording, 0);
+        assert!(plain.breath_rise.iter().all(|r| *r == 0.0));
+        let mut breathing = still.clone();
+        // 1 Hz so the 4 s recording holds whole breaths.
+        breathing.breathing = Some((1.0, 0.004));
+        let breathed = replay(&setup, &breathing, &recording, 0);
+        let (low, high) = breathed
+            .breath_rise
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), r| {
+                (l.min(*r), h.max(*r))
+            });
+        assert!(
+            low.abs() < 1e-4 && (high - 0.004).abs() < 1e-4,
+            "rise {low} … {high}"
+        );
+        for ((d, p), r) in breathed
+            .depth
+            .iter()
+            .zip(&plain.depth)
+            .zip(&breathed.breath_rise)
+        {
+            assert!((d - p - r).abs() < 1e-12);
+        }
     }
 
     #[test]

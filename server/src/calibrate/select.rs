@@ -176,7 +176,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                     .collect();
                 names.push(effect.name);
                 let (model, diagnostics, predictions) =
-                    refit_in_simulator(setup, dataset, split, model, &names);
+                    refit_in_simulator(setup, dataset, split, model, &names, k_per_unit);
                 let channel = entry.channel();
                 let before =
                     rmse_against(dataset, &split.validation, &current_predictions, channel);
@@ -226,7 +226,14 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
         let explained =
             (before * before - after * after) / (before * before - noise * noise).max(1e-12);
         if trial.gain() >= threshold && (!second_chance || explained >= MIN_EXPLAINED) {
-            try_richer(&mut trial, setup, dataset, split, threshold * ESCALATION);
+            try_richer(
+                &mut trial,
+                setup,
+                dataset,
+                split,
+                threshold * ESCALATION,
+                k_per_unit,
+            );
             calibrated = trial.model;
             calibrated_fit = trial.diagnostics;
             current = series_of(dataset, setup, &trial.predictions);
@@ -278,14 +285,16 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
 }
 
 /// `model` with the effects `names` refitted by replay on the training recordings, the
-/// surface the training recordings could not determine fitted on the held-out ones, and
-/// its predictions of every recording.
+/// surface the training recordings could not determine fitted on the held-out ones, the
+/// effects' per-recording nuisance states re-read from its residual
+/// ([`effects::Effect::refine`]), and its predictions of every recording.
 fn refit_in_simulator(
     setup: &Setup,
     dataset: &Dataset,
     split: &Split,
     model: Model,
     names: &[&str],
+    k_per_unit: f64,
 ) -> (Model, FitDiagnostics, Vec<replay::Prediction>) {
     let (refitted, diagnostics) = fit_model(
         setup,
@@ -296,9 +305,48 @@ fn refit_in_simulator(
         Free::PER_SITE,
         EFFECT_ITERATIONS,
     );
-    let (model, _) = baseline::surface_elsewhere(setup, dataset, split, refitted);
+    let (mut model, _) = baseline::surface_elsewhere(setup, dataset, split, refitted);
     let all: Vec<usize> = (0..dataset.recordings.len()).collect();
-    let predictions = replay_all(setup, &model, &dataset.recordings, &all);
+    let mut predictions = replay_all(setup, &model, &dataset.recordings, &all);
+    let series = series_of(dataset, setup, &predictions);
+    let k = model.stiffness * k_per_unit;
+    let entries: Vec<&dyn effects::Effect> = names
+        .iter()
+        .filter_map(|name| effects::named(name))
+        .collect();
+    let mut refined = model.clone();
+    let every = vec![true; all.len()];
+    let mut changed = false;
+    for entry in &entries {
+        changed |= entry.refine(&mut refined, &series, k, &every);
+    }
+    if changed {
+        // A recording's re-read states are kept only where the simulator agrees (they
+        // were read on a linearisation of the force): its own RMSE must fall.
+        let again = replay_all(setup, &refined, &dataset.recordings, &all);
+        let error = |p: &[replay::Prediction], i: usize| {
+            rmse_against(dataset, &[i], p, effects::Channel::Normal)
+        };
+        let better: Vec<bool> = all
+            .iter()
+            .map(|&i| error(&again, i) < error(&predictions, i))
+            .collect();
+        let before = rmse_against(dataset, &all, &predictions, effects::Channel::Normal);
+        for entry in &entries {
+            entry.refine(&mut model, &series, k, &better);
+        }
+        for (i, keep) in better.iter().enumerate() {
+            if *keep {
+                predictions[i] = again[i].clone();
+            }
+        }
+        tracing::debug!(
+            "nuisance states re-read from the calibrated residual for {} of {} recordings: RMSE {before:.4} → {:.4} N over all",
+            better.iter().filter(|b| **b).count(),
+            all.len(),
+            rmse_against(dataset, &all, &predictions, effects::Channel::Normal)
+        );
+    }
     (model, diagnostics, predictions)
 }
 
@@ -306,7 +354,14 @@ fn refit_in_simulator(
 /// it replaces `trial`'s model when it lowers the validation RMSE by at least `needed`
 /// (relative) — the bar a further effect would have to clear, since the richer form
 /// adds parameters as one would.
-fn try_richer(trial: &mut Trial, setup: &Setup, dataset: &Dataset, split: &Split, needed: f64) {
+fn try_richer(
+    trial: &mut Trial,
+    setup: &Setup,
+    dataset: &Dataset,
+    split: &Split,
+    needed: f64,
+    k_per_unit: f64,
+) {
     let Some(entry) = effects::named(trial.effect.name) else {
         return;
     };
@@ -315,7 +370,7 @@ fn try_richer(trial: &mut Trial, setup: &Setup, dataset: &Dataset, split: &Split
     };
     let names: Vec<&str> = trial.names.iter().map(String::as_str).collect();
     let (model, diagnostics, predictions) =
-        refit_in_simulator(setup, dataset, split, model, &names);
+        refit_in_simulator(setup, dataset, split, model, &names, k_per_unit);
     let channel = entry.channel();
     let train_before = rmse_against(dataset, &split.train, &trial.predictions, channel);
     let train_after = rmse_against(dataset, &split.train, &predictions, channel);
@@ -437,6 +492,17 @@ fn select_effects(
             continue;
         };
         let after_v = rmse_where(channel, validation, &sig.predicted);
+        if tracing::enabled!(tracing::Level::TRACE) {
+            for (k, _) in validation.iter().enumerate().filter(|(_, v)| **v) {
+                let one: Vec<bool> = (0..series.len()).map(|j| j == k).collect();
+                tracing::trace!(
+                    "signature {name} on {}: {:.4} → {:.4} N",
+                    series[k].file,
+                    rmse_where(channel, &one, &null),
+                    rmse_where(channel, &one, &sig.predicted)
+                );
+            }
+        }
         let after_t = rmse_where(channel, train, &sig.predicted);
         let gain_v = (before_v - after_v) / before_v.max(1e-12);
         let gain_t = (before_t - after_t) / before_t.max(1e-12);

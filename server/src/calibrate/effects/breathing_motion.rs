@@ -69,6 +69,52 @@ impl Effect for BreathingMotion {
         }
     }
 
+    /// Each recording's phase, rate and track searched again on the calibrated residual
+    /// with the modelled breath's force (`k` times its rise) added back; kept where they
+    /// fit it better than the current ones.
+    fn refine(&self, model: &mut Model, series: &[Series], k: f64, update: &[bool]) -> bool {
+        let Some((common, _)) = model.breathing else {
+            return false;
+        };
+        let n = series.len();
+        let resize = |v: &mut Vec<f64>, fill: f64| v.resize(n.max(v.len()), fill);
+        resize(&mut model.breathing_phase, 0.0);
+        resize(&mut model.breathing_freq, common);
+        resize(&mut model.breathing_rate_slope, 0.0);
+        model
+            .breathing_phase_track
+            .resize(n.max(model.breathing_phase_track.len()), Vec::new());
+        let mut changed = false;
+        for s in series.iter().filter(|s| update.get(s.index) == Some(&true)) {
+            let i = s.index;
+            let with_breath: Vec<f64> = s
+                .residual
+                .iter()
+                .zip(&s.breath_rise)
+                .zip(&s.contact)
+                .map(|((r, b), &c)| if c { r + k * b } else { *r })
+                .collect();
+            let t0 = s.t[0];
+            let current = Chirp::steady(model.breathing_freq[i], t0)
+                .with_slope(model.breathing_rate_slope[i]);
+            let (phase0, track0) = (model.breathing_phase[i], &model.breathing_phase_track[i]);
+            let (sse_now, ..) = breathing_fit(s, &with_breath, &|t| {
+                phase0 + current.phase(t) + track_at(track0, t - t0)
+            });
+            let (chirp, _, _, track) = track_recording(s, &with_breath, current.freq);
+            let phase = |t: f64| chirp.phase(t) + track_at(&track, t - t0);
+            let (sse, a, c) = breathing_fit(s, &with_breath, &phase);
+            if sse < sse_now * (1.0 - 1e-6) && a.hypot(c) > 0.0 {
+                model.breathing_phase[i] = a.atan2(-c);
+                model.breathing_freq[i] = chirp.freq;
+                model.breathing_rate_slope[i] = chirp.slope;
+                model.breathing_phase_track[i] = track;
+                changed = true;
+            }
+        }
+        changed
+    }
+
     fn report(&self, model: &Model, _context: &ReportContext<'_>) -> serde_json::Value {
         let (f, a) = model.breathing.unwrap_or((0.0, 0.0));
         serde_json::json!({"freq_hz": f, "amplitude_m": a, "edge_rise": model.breathing_edge_rise})
@@ -121,43 +167,10 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
     // Each recording: its own rate (±15 % of the common one) and a rate that may
     // change linearly across it (a drifting rate, ±12 % over the recording),
     // refined coordinate-wise.
-    type Tracked = (Chirp, f64, f64, Vec<(f64, f64)>);
     let per: Vec<Tracked> = series
         .iter()
         .zip(&rest)
-        .map(|(s, r)| {
-            let t_ref = s.t[0];
-            let span = (s.t[s.len() - 1] - t_ref).max(1.0);
-            let mut best = (f64::INFINITY, Chirp::steady(f, t_ref), 0.0, 0.0);
-            let consider = |best: &mut (f64, Chirp, f64, f64), chirp: Chirp| {
-                let (sse, a, c) = breathing_fit(s, r, &chirp.phase_fn());
-                if sse < best.0 {
-                    *best = (sse, chirp, a, c);
-                }
-            };
-            for k in 0..=30 {
-                consider(
-                    &mut best,
-                    Chirp::steady(f * (0.85 + 0.01 * k as f64), t_ref),
-                );
-            }
-            for _ in 0..2 {
-                let f0 = best.1.freq;
-                for k in -6..=6 {
-                    let slope = f0 * 0.02 * k as f64 / span;
-                    consider(&mut best, Chirp::steady(f0, t_ref).with_slope(slope));
-                }
-                let slope = best.1.slope;
-                for k in -5..=5 {
-                    let freq = f0 * (1.0 + 0.004 * k as f64);
-                    consider(&mut best, Chirp::steady(freq, t_ref).with_slope(slope));
-                }
-            }
-            // Then the phase breath by breath, and the amplitude again with it.
-            let chirp = best.1;
-            let (a, c, track) = follow_breaths(s, r, chirp, (best.2, best.3));
-            (chirp, a, c, track)
-        })
+        .map(|(s, r)| track_recording(s, r, f))
         .collect();
     // The rise differs across the top (a dome, or a top rising as one): each
     // training recording's rise, fitted as a centre amplitude times the
@@ -198,7 +211,9 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
     let mut freqs = Vec::new();
     let mut slopes = Vec::new();
     let mut tracks = Vec::new();
-    let predicted: Vec<Vec<f64>> = series
+    // Less what each slide's path fit took of the breath, and without that (the
+    // specificity test below judges the breath alone).
+    let (predicted, breath_only): (Vec<Vec<f64>>, Vec<Vec<f64>>) = series
         .iter()
         .zip(&per)
         .zip(&base)
@@ -223,25 +238,35 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
             slopes.push(chirp.slope);
             tracks.push(track.clone());
             let at_onsets = onset_mean(s, &|t| chirp.phase(t) + track_at(track, t - s.t[0]));
-            s.t.iter()
-                .zip(&s.contact)
-                .zip(b)
-                .map(|((&t, &on), b)| {
-                    let phase = chirp.phase(t) + track_at(track, t - s.t[0]);
-                    b + if on {
-                        a * (phase.sin() - at_onsets.0) + c * (phase.cos() - at_onsets.1)
-                    } else {
-                        0.0
-                    }
-                })
-                .collect()
+            let breath: Vec<f64> =
+                s.t.iter()
+                    .zip(&s.contact)
+                    .map(|(&t, &on)| {
+                        let phase = chirp.phase(t) + track_at(track, t - s.t[0]);
+                        if on {
+                            a * (phase.sin() - at_onsets.0) + c * (phase.cos() - at_onsets.1)
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect();
+            // What of this breath the baseline's path fit took already.
+            let path: Vec<f64> = path_part(s, &breath).iter().map(|p| -p).collect();
+            let with_breath = |extra: &[f64]| -> Vec<f64> {
+                b.iter()
+                    .zip(&breath)
+                    .zip(extra)
+                    .map(|((b, q), e)| b + q + e)
+                    .collect()
+            };
+            (with_breath(&path), with_breath(&vec![0.0; s.len()]))
         })
-        .collect();
+        .unzip();
     // Specificity: breathing moves the surface, so the force oscillates where the
     // probe holds its depth; depth-dependent effects (a nonlinear spring) leave
     // a constant there. The sinusoids must explain part of the training
     // residual's variation within steady stretches.
-    let explained = steady_share_explained(series, train, &rest, &predicted, &base);
+    let explained = steady_share_explained(series, train, &rest, &breath_only, &base);
     if std::env::var("DBG_STEADY").is_ok() {
         eprintln!("steady share {explained:?}");
     }
@@ -264,6 +289,46 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
         predicted,
         readjust,
     })
+}
+
+/// One recording's breathing phase: (the rate chirp, the oscillation `(a, c)`, its
+/// breath-by-breath track). Its own rate within ±15 % of `f`, a rate that may change
+/// linearly across it (a drifting rate, ±12 % over the recording), refined
+/// coordinate-wise; then the phase breath by breath, and the amplitude again with it.
+type Tracked = (Chirp, f64, f64, Vec<(f64, f64)>);
+
+fn track_recording(s: &Series, r: &[f64], f: f64) -> Tracked {
+    let t_ref = s.t[0];
+    let span = (s.t[s.len() - 1] - t_ref).max(1.0);
+    let mut best = (f64::INFINITY, Chirp::steady(f, t_ref), 0.0, 0.0);
+    let consider = |best: &mut (f64, Chirp, f64, f64), chirp: Chirp| {
+        let (sse, a, c) = breathing_fit(s, r, &chirp.phase_fn());
+        if sse < best.0 {
+            *best = (sse, chirp, a, c);
+        }
+    };
+    for k in 0..=30 {
+        consider(
+            &mut best,
+            Chirp::steady(f * (0.85 + 0.01 * k as f64), t_ref),
+        );
+    }
+    for _ in 0..2 {
+        let f0 = best.1.freq;
+        for k in -6..=6 {
+            let slope = f0 * 0.02 * k as f64 / span;
+            consider(&mut best, Chirp::steady(f0, t_ref).with_slope(slope));
+        }
+        let slope = best.1.slope;
+        for k in -5..=5 {
+            let freq = f0 * (1.0 + 0.004 * k as f64);
+            consider(&mut best, Chirp::steady(freq, t_ref).with_slope(slope));
+        }
+    }
+    // Then the phase breath by breath, and the amplitude again with it.
+    let chirp = best.1;
+    let (a, c, track) = follow_breaths(s, r, chirp, (best.2, best.3));
+    (chirp, a, c, track)
 }
 
 /// Share of the residual's variation inside steady stretches that breathing must
@@ -325,6 +390,7 @@ fn breathing_fit(s: &Series, residual: &[f64], phase: &dyn Fn(f64) -> f64) -> (f
         }
         columns.push(offset);
     }
+    columns.extend(path_columns(s));
     let beta = least_squares(&columns, residual, &rows);
     let sse = (0..n)
         .filter(|&i| rows[i])
@@ -391,6 +457,33 @@ fn onset_mean(s: &Series, phase: &dyn Fn(f64) -> f64) -> (f64, f64) {
     (sin / n, cos / n)
 }
 
+/// A slide's path shape beside the breath: its position along the path and its square,
+/// in contact (none for a recording that does not slide). The baseline fitted the
+/// slide's slope and curvature on a residual that carried the breath (for a held-out
+/// slide, on itself), and a probe sliding out and back turns a path's shape into a
+/// slow oscillation in time; refitted beside the breath, the path gives back what it
+/// took of it, as the simulator refits it once breathing is modelled: on a slide the
+/// signature predicts the breath less its path part.
+fn path_columns(s: &Series) -> Vec<Vec<f64>> {
+    if s.along_path.iter().all(|v| *v == 0.0) {
+        return Vec::new();
+    }
+    vec![
+        s.along_path.clone(),
+        s.along_path.iter().map(|v| v * v).collect(),
+    ]
+}
+
+/// The path shape's least-squares part of `signal` (see [`path_columns`]; 0 for a
+/// recording that does not slide): what a path fit would take of it.
+fn path_part(s: &Series, signal: &[f64]) -> Vec<f64> {
+    let columns = path_columns(s);
+    let beta = least_squares(&columns, signal, &s.contact);
+    (0..s.len())
+        .map(|i| columns.iter().zip(&beta).map(|(c, b)| c[i] * b).sum())
+        .collect()
+}
+
 /// Fit `a·sin φ + b·cos φ` (φ = `phase(t)`) to the in-contact part of `residual`
 /// (one series), less its value at the contact onsets (see [`onset_mean`]): (SSE, a, b,
 /// prediction).
@@ -412,9 +505,11 @@ fn sinusoid_fit(
             .map(|(&t, m)| m * (phase(t).cos() - cos_on))
             .collect();
     let rows = vec![true; s.len()];
-    let beta = least_squares(&[sin.clone(), cos.clone()], residual, &rows);
+    let mut columns = vec![sin, cos];
+    columns.extend(path_columns(s));
+    let beta = least_squares(&columns, residual, &rows);
     let pred: Vec<f64> = (0..s.len())
-        .map(|i| beta[0] * sin[i] + beta[1] * cos[i])
+        .map(|i| columns.iter().zip(&beta).map(|(c, b)| c[i] * b).sum())
         .collect();
     let sse = residual
         .iter()
@@ -565,6 +660,8 @@ mod tests {
             residual,
             contact: vec![true; n],
             depth: vec![0.006; n],
+            along_path: vec![0.0; n],
+            breath_rise: vec![0.0; n],
             vz: vec![0.0; n],
             lateral_speed: vec![0.0; n],
             az: vec![0.0; n],
@@ -611,6 +708,41 @@ mod tests {
         );
         // The amplitude of the breath's force: k·A/2 = 1.5 N.
         assert!((a.hypot(c) - 1.5).abs() < 0.1, "amplitude {}", a.hypot(c));
+    }
+
+    /// A modelled breath a radian out of phase with the recording: re-read on the
+    /// calibrated residual with the modelled breath added back, the phase comes back to
+    /// the recording's; a recording not to be updated keeps its phase.
+    #[test]
+    fn refine_reads_the_phase_again_from_the_calibrated_residual() {
+        let (k, amplitude, freq, truth) = (2000.0, 0.003, 0.28, 1.0);
+        let rise = |t: f64, phase: f64| {
+            amplitude * (1.0 - (phase + std::f64::consts::TAU * freq * t).cos()) / 2.0
+        };
+        let t: Vec<f64> = (0..4000).map(|i| i as f64 * 0.01).collect();
+        let mut rng = Pcg64Mcg::seed_from_u64(7);
+        // Measured: the true breath's force plus noise; modelled: at phase 0.
+        let residual: Vec<f64> = t
+            .iter()
+            .map(|&t| k * (rise(t, truth) - rise(t, 0.0)) + rng.random_range(-0.05..0.05))
+            .collect();
+        let mut s = held(t.clone(), residual);
+        s.breath_rise = t.iter().map(|&t| rise(t, 0.0)).collect();
+        let mut model = Model::baseline(1000.0, 1.0, 0.0);
+        model.breathing = Some((freq, amplitude));
+        model.breathing_phase = vec![0.0];
+        model.breathing_freq = vec![freq];
+        let mut kept = model.clone();
+        assert!(BreathingMotion.refine(&mut model, std::slice::from_ref(&s), k, &[true]));
+        let error = wrap(model.breathing_phase[0] - truth).abs();
+        assert!(
+            error < 0.05,
+            "phase {} for {truth}",
+            model.breathing_phase[0]
+        );
+        assert!((model.breathing_freq[0] - freq).abs() < 0.005 * freq);
+        assert!(!BreathingMotion.refine(&mut kept, &[s], k, &[false]));
+        assert_eq!(kept.breathing_phase, vec![0.0]);
     }
 
     /// A hold with noise and no breathing: a track may form, but it must not make a

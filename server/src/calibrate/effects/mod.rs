@@ -162,6 +162,17 @@ pub trait Effect: Sync {
         None
     }
 
+    /// Re-read the element's per-recording nuisance states (a breath's phase and rate)
+    /// from the simulator as calibrated: `series` holds its predictions, `k` its contact
+    /// stiffness \[N/m\]; only the recordings whose index `update` holds as `true` are
+    /// changed. `true` when `model` changed (the caller replays). The
+    /// signature read them from the baseline's residual, which carries what the baseline
+    /// got wrong besides (a slide's path, a chirp near the breathing rate); the
+    /// calibrated residual with the element's own part added back carries less.
+    fn refine(&self, _model: &mut Model, _series: &[Series], _k: f64, _update: &[bool]) -> bool {
+        false
+    }
+
     /// Put the simulator element into `model`, from the signature's parameters.
     fn apply(&self, params: &Params, model: &mut Model, setup: &Setup);
 
