@@ -86,33 +86,20 @@ fn along_path(rec: &Recording, contact: &[bool]) -> Vec<f64> {
     if points.len() < 2 {
         return vec![0.0; n];
     }
-    let m = points.len() as f64;
-    let centre = points
-        .iter()
-        .fold([0.0; 2], |a, p| [a[0] + p[0] / m, a[1] + p[1] / m]);
-    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
-    for p in &points {
-        let (dx, dy) = (p[0] - centre[0], p[1] - centre[1]);
-        sxx += dx * dx;
-        sxy += dx * dy;
-        syy += dy * dy;
-    }
-    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
-    let along = [angle.cos(), angle.sin()];
-    let s = |p: &[f64; 3]| (p[0] - centre[0]) * along[0] + (p[1] - centre[1]) * along[1];
-    let (lo, hi) = points
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
-            let v = s(&[p[0], p[1], 0.0]);
-            (lo.min(v), hi.max(v))
-        });
-    if hi - lo <= super::geometry::SLOPE_EXTENT {
+    let (centre, along, extent) = super::geometry::principal_axis(&points);
+    if extent <= super::geometry::SLOPE_EXTENT {
         return vec![0.0; n];
     }
     rec.p
         .iter()
         .zip(contact)
-        .map(|(p, &c)| if c { s(p) } else { 0.0 })
+        .map(|(p, &c)| {
+            if c {
+                (p[0] - centre[0]) * along[0] + (p[1] - centre[1]) * along[1]
+            } else {
+                0.0
+            }
+        })
         .collect()
 }
 

@@ -180,33 +180,39 @@ pub fn sites(dataset: &Dataset) -> Vec<SiteSurface> {
         .collect()
 }
 
+/// The points' mean, their principal axis (a unit direction in xy) and their extent
+/// along it \[m\].
+pub fn principal_axis(points: &[[f64; 2]]) -> ([f64; 2], [f64; 2], f64) {
+    let centre = mean(points);
+    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+    for p in points {
+        let (dx, dy) = (p[0] - centre[0], p[1] - centre[1]);
+        sxx += dx * dx;
+        sxy += dx * dy;
+        syy += dy * dy;
+    }
+    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    let along = [angle.cos(), angle.sin()];
+    let (lo, hi) = points.iter().fold((0.0f64, 0.0f64), |(lo, hi), p| {
+        let s = (p[0] - centre[0]) * along[0] + (p[1] - centre[1]) * along[1];
+        (lo.min(s), hi.max(s))
+    });
+    (centre, along, hi - lo)
+}
+
 /// A path for every recording (direction: the principal axis of its contact points),
 /// flat to begin with.
 pub fn paths(dataset: &Dataset) -> Vec<PathSurface> {
     (0..dataset.recordings.len())
         .map(|i| {
-            let points = contact_points(dataset, i);
-            let centre = mean(&points);
-            let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
-            for p in &points {
-                let (dx, dy) = (p[0] - centre[0], p[1] - centre[1]);
-                sxx += dx * dx;
-                sxy += dx * dy;
-                syy += dy * dy;
-            }
-            let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
-            let along = [angle.cos(), angle.sin()];
-            let (lo, hi) = points.iter().fold((0.0f64, 0.0f64), |(lo, hi), p| {
-                let s = (p[0] - centre[0]) * along[0] + (p[1] - centre[1]) * along[1];
-                (lo.min(s), hi.max(s))
-            });
+            let (centre, along, extent_m) = principal_axis(&contact_points(dataset, i));
             PathSurface {
                 recording: i,
                 centre,
                 height_m: 0.0,
                 height_source: Source::Unfitted,
                 along,
-                extent_m: hi - lo,
+                extent_m,
                 slope: 0.0,
                 curvature_per_m: 0.0,
                 source: Source::Unfitted,

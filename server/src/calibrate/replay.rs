@@ -619,6 +619,19 @@ mod tests {
         }
     }
 
+    /// A scene of `torso` alone: no sites, no session, the surface at its top.
+    fn flat_setup(torso: TorsoParams) -> Setup {
+        Setup {
+            nominal_surface_z: torso.top_z(),
+            center_xy: [0.0, 0.0],
+            sites: Vec::new(),
+            recording_sites: Vec::new(),
+            session: SessionClock::default(),
+            approaches: Vec::new(),
+            torso,
+        }
+    }
+
     /// Force amplitude in phase with the depth over the last 2 s \[N\].
     fn amplitude(pred: &Prediction, freq_hz: f64) -> f64 {
         let w = 2.0 * std::f64::consts::PI * freq_hz;
@@ -637,15 +650,7 @@ mod tests {
     #[test]
     fn the_depth_carries_the_modelled_breath() {
         let torso = TorsoParams::default();
-        let setup = Setup {
-            nominal_surface_z: torso.top_z(),
-            center_xy: [0.0, 0.0],
-            sites: Vec::new(),
-            recording_sites: Vec::new(),
-            session: SessionClock::default(),
-            approaches: Vec::new(),
-            torso: torso.clone(),
-        };
+        let setup = flat_setup(torso.clone());
         let mut recording = oscillation(0.5, setup.nominal_surface_z);
         let centre = torso.center_xy;
         for p in &mut recording.p {
@@ -680,16 +685,7 @@ mod tests {
 
     #[test]
     fn the_replayed_torso_has_little_inertia_of_its_own() {
-        let torso = TorsoParams::default();
-        let setup = Setup {
-            nominal_surface_z: torso.top_z(),
-            center_xy: [0.0, 0.0],
-            sites: Vec::new(),
-            recording_sites: Vec::new(),
-            session: SessionClock::default(),
-            approaches: Vec::new(),
-            torso,
-        };
+        let setup = flat_setup(TorsoParams::default());
         let model = Model::baseline(1324.17, 17.59, 0.0);
         let slow = amplitude(
             &replay(
