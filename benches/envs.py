@@ -23,7 +23,8 @@ robosuite side (benches/envs_robosuite.py in benches/.venv-peers, one process, o
 Each figure is the median of `--repeats` runs of `--seconds`. Prints a markdown table,
 writes benches/results/envs.{md,json}, and ends with one `RESULT key=value ...` line.
 `--scaling`: benches/scaling.py's curve (batches of 16 and 64 at 1/2/4/8/16 server threads,
-those the machine has cores for; with `--env-step-bin`, the machine alone) and its model.
+those the machine has cores for, one client and four; with `--env-step-bin`, the machine
+alone) and its model.
 """
 
 from __future__ import annotations
@@ -120,7 +121,8 @@ def main() -> None:
     scaling_lines, scaling_result = [], None
     if args.scaling:
         scaling_result = scaling.run(args.seconds, args.repeats, list(scaling.THREADS),
-                                     list(scaling.BATCHES), args.env_step_bin)
+                                     list(scaling.BATCHES), args.env_step_bin,
+                                     list(scaling.CLIENTS))
         scaling_lines = ["", "Scaling (benches/scaling.py):", "", *scaling.report(scaling_result)]
         os.sched_setaffinity(0, {CLIENT_CPU})
     os.sched_setaffinity(0, set(range(os.cpu_count() or 1)))

@@ -7,6 +7,12 @@ count the server's threads are pinned to N cores of their own (distinct physical
 first where the CPU has SMT) and the client to another; at N = all cores they share.
 `Null-v0` at 1 thread gives the serial part δ.
 
+With `--clients 1,4` (the default), also K client processes, each stepping its own batch
+(as a torchrl collector's workers or SB3's subprocesses do): while one client's batch is
+published and its Python runs, the workers step another's, so the pool is not idle between
+batches. The clients get cores of their own while server threads and clients fit, else the
+server's threads keep cores of their own and the clients share the rest.
+
 With `--env-step-bin` (benches/env_step.rs, which `benches/run scaling` builds), the machine
 alone: N processes, one per core, each stepping 4 envs in-process (no server): h(N), the
 per-core speed at N busy cores over one busy core (shared caches, memory bandwidth, clocks,
@@ -31,11 +37,12 @@ import sys
 
 import echogym  # noqa: F401  (registers the envs)
 from bench_server import BenchServer, machine_description
-from env_rate import env_steps_per_s, pin_process
+from env_rate import env_steps_per_s, env_steps_per_s_clients, pin_process
 
 SCAN_20HZ = {"controller": {"control_freq": 20.0}, "task": {"early_termination": False}}
 BATCHES = (16, 64)
 THREADS = (1, 2, 4, 8, 16)
+CLIENTS = (1, 4)
 
 
 def numbers(text: str) -> list[int]:
@@ -58,10 +65,13 @@ def cores_in_order() -> list[int]:
     return first + siblings
 
 
-def placement(threads: int, cpus: list[int]) -> tuple[set[int], set[int]]:
-    """(server CPUs, client CPUs): own cores for each while they fit, else all shared."""
+def placement(threads: int, cpus: list[int], clients: int = 1) -> tuple[set[int], set[int]]:
+    """(server CPUs, client CPUs): own cores for each while they fit; the server's threads
+    on cores of their own while they fit, the clients on the rest; else all shared."""
+    if threads + clients <= len(cpus):
+        return set(cpus[clients:clients + threads]), set(cpus[:clients])
     if threads < len(cpus):
-        return set(cpus[1:threads + 1]), {cpus[0]}
+        return set(cpus[len(cpus) - threads:]), set(cpus[:len(cpus) - threads])
     return set(cpus), set(cpus)
 
 
@@ -80,23 +90,30 @@ def machine_alone(env_step_bin: str, seconds: float, counts: list[int]) -> dict[
 
 
 def measure(seconds: float, repeats: int, thread_counts: list[int], batches: list[int],
-            alone: dict[int, float] | None = None) -> dict:
+            alone: dict[int, float] | None = None, client_counts: list[int] = [1]) -> dict:
     cpus = cores_in_order()
     runs: dict[int, dict[int, list[float]]] = {}
+    clients_runs: dict[int, dict[tuple[int, int], list[float]]] = {}
     null: dict[int, list[float]] = {}
     for threads in thread_counts:
-        server_cpus, client_cpus = placement(threads, cpus)
-        os.sched_setaffinity(0, client_cpus)
-        with BenchServer(f"scaling-{threads}", "--threads", str(threads)) as server:
-            pin_process(server.process.pid, server_cpus)
-            runs[threads] = {}
-            for batch in batches:
-                runs[threads][batch] = [
-                    env_steps_per_s(server.name, "echogym/UltrasoundScan-v0", batch, SCAN_20HZ,
-                                    seconds) for _ in range(repeats)]
-                print(f"scaling {threads} threads, batch {batch}: "
-                      f"{[round(r) for r in runs[threads][batch]]}", file=sys.stderr)
-                if threads == 1:
+        runs[threads], clients_runs[threads] = {}, {}
+        for clients in client_counts:
+            server_cpus, client_cpus = placement(threads, cpus, clients)
+            os.sched_setaffinity(0, client_cpus)
+            with BenchServer(f"scaling-{threads}-{clients}", "--threads", str(threads)) as server:
+                pin_process(server.process.pid, server_cpus)
+                for batch in batches:
+                    rates = [env_steps_per_s_clients(server.name, "echogym/UltrasoundScan-v0",
+                                                     batch, SCAN_20HZ, seconds, clients)
+                             for _ in range(repeats)]
+                    print(f"scaling {threads} threads, {clients} clients, batch {batch}: "
+                          f"{[round(r) for r in rates]}", file=sys.stderr)
+                    if clients > 1:
+                        clients_runs[threads][(batch, clients)] = rates
+                        continue
+                    runs[threads][batch] = rates
+                    if threads != 1:
+                        continue
                     # The dispatcher, transport and client alone: a batch of Null-v0 envs.
                     null[batch] = [env_steps_per_s(server.name, "echogym/Null-v0", batch, {},
                                                    seconds) for _ in range(repeats)]
@@ -121,17 +138,30 @@ def measure(seconds: float, repeats: int, thread_counts: list[int], batches: lis
                       "predicted": predicted,
                       "efficiency": {n: predicted[n] / (n * predicted[1]) for n in thread_counts}},
         }
+    result["clients"] = {}
+    for batch in batches:
+        for clients in client_counts:
+            if clients == 1:
+                continue
+            med = {n: statistics.median(clients_runs[n][(batch, clients)])
+                   for n in thread_counts}
+            result["clients"][f"{batch}x{clients}"] = {
+                "batch": batch, "clients": clients,
+                "runs": {n: clients_runs[n][(batch, clients)] for n in thread_counts},
+                "median": med,
+                "efficiency": {n: med[n] / (n * med[1]) for n in thread_counts},
+            }
     return result
 
 
 def run(seconds: float, repeats: int, threads: list[int], batches: list[int],
-        env_step_bin: str | None) -> dict:
+        env_step_bin: str | None, clients: list[int] = [1]) -> dict:
     """`measure` at the thread counts this machine has cores for (1 always), with the
     machine alone when `env_step_bin` is given."""
     cores = len(os.sched_getaffinity(0))
     threads = sorted({1, *(n for n in threads if n <= cores)})
     alone = machine_alone(env_step_bin, seconds, threads) if env_step_bin else None
-    return measure(seconds, repeats, threads, batches, alone)
+    return measure(seconds, repeats, threads, batches, alone, sorted({1, *clients}))
 
 
 def report(result: dict) -> list[str]:
@@ -155,6 +185,16 @@ def report(result: dict) -> list[str]:
             runs = ", ".join(f"{r:,.0f}" for r in b["runs"][n])
             lines.append(f"| {batch} | {n} | {rate:,.0f} | {runs} | {b['efficiency'][n]:.2f} | "
                          f"{b['model']['predicted'][n]:,.0f} | {b['model']['efficiency'][n]:.3f} |")
+    if result.get("clients"):
+        lines += ["", "Several clients, each stepping its own batch (efficiency against the same "
+                  "clients at 1 thread):", "",
+                  "| batch × clients | threads | env-steps/s | runs | efficiency |",
+                  "|---:|---:|---:|---|---:|"]
+        for key, b in result["clients"].items():
+            for n, rate in b["median"].items():
+                runs = ", ".join(f"{r:,.0f}" for r in b["runs"][n])
+                lines.append(f"| {b['batch']} × {b['clients']} | {n} | {rate:,.0f} | {runs} | "
+                             f"{b['efficiency'][n]:.2f} |")
     for batch, b in result["batches"].items():
         m = b["model"]
         lines.append(
@@ -165,8 +205,9 @@ def report(result: dict) -> list[str]:
 
 
 def result_kv(result: dict) -> str:
-    """`scaling_{B}_{N}t=` and `scaling_{B}_eff{N}=` for each batch B and thread count N,
-    `machine_h{N}=` where the machine alone was measured."""
+    """`scaling_{B}_{N}t=` and `scaling_{B}_eff{N}=` for each batch B and thread count N
+    (`scaling_{B}x{K}_...` with K clients), `machine_h{N}=` where the machine alone was
+    measured."""
     kv = [f"machine_h{n}={h:.2f}"
           for n, h in result.get("machine_alone", {}).get("per_core_speed", {}).items() if n > 1]
     for batch, b in result["batches"].items():
@@ -175,6 +216,12 @@ def result_kv(result: dict) -> str:
         for n, eff in b["efficiency"].items():
             if n > 1:
                 kv.append(f"scaling_{batch}_eff{n}={eff:.2f}")
+    for key, b in result.get("clients", {}).items():
+        for n, rate in b["median"].items():
+            kv.append(f"scaling_{key}_{n}t={rate:.0f}")
+        for n, eff in b["efficiency"].items():
+            if n > 1:
+                kv.append(f"scaling_{key}_eff{n}={eff:.2f}")
     return " ".join(kv)
 
 
@@ -188,12 +235,16 @@ def main() -> None:
                              "(the model's base), counts above the cores are skipped")
     parser.add_argument("--batches", type=numbers, default=list(BATCHES),
                         help="batch sizes, comma-separated")
+    parser.add_argument("--clients", type=numbers, default=list(CLIENTS),
+                        help="client process counts, comma-separated (each steps its own "
+                             "batch); 1 is always measured")
     parser.add_argument("--env-step-bin",
                         help="benches/env_step.rs's binary: also measure the machine alone")
     parser.add_argument("--out", default="benches/results/scaling",
                         help="path of the results without extension (.md and .json are written)")
     args = parser.parse_args()
-    result = run(args.seconds, args.repeats, args.threads, args.batches, args.env_step_bin)
+    result = run(args.seconds, args.repeats, args.threads, args.batches, args.env_step_bin,
+                 args.clients)
     lines = report(result)
     print("\n".join(lines))
     os.makedirs(os.path.dirname(args.out) or ".", exist_ok=True)
