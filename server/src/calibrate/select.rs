@@ -94,19 +94,19 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
     // refitted by replay), so a weak effect is not hidden behind a strong one's
     // linearisation; then the validation test in the simulator itself: the refitted
     // simulator must beat the previous one on the validation recordings by the round's
-    // threshold, else the effect is excluded and the round runs again without it.
+    // threshold, else the effect is excluded and the round runs again without it (until
+    // an effect is named: see `decision::Failures`).
     let mut calibrated = base.clone();
     let mut calibrated_fit = baseline_fit.clone();
     let mut current: Vec<Series> = series.to_vec();
     let mut current_predictions = predictions.to_vec();
     let mut accepted: Vec<decision::Accepted> = Vec::new();
-    let mut excluded: Vec<&'static str> = Vec::new();
-    let mut failed: Vec<decision::Rejected> = Vec::new();
+    let mut failures = decision::Failures::default();
     let mut rejected: Vec<decision::Rejected> = Vec::new();
     let mut threshold = FIRST_GAIN;
     for _attempt in 0..6 {
         let k_now = calibrated.stiffness * k_per_unit;
-        let mut skip = excluded.clone();
+        let mut skip = failures.skipped().to_vec();
         for a in &accepted {
             skip.push(a.name);
             // What an accepted effect contains is found already.
@@ -245,6 +245,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                 &[trial.effect.name],
                 k_per_unit,
             );
+            failures.named(trial.effect.name);
             calibrated = trial.model;
             calibrated_fit = trial.diagnostics;
             current = series_of(dataset, setup, &trial.predictions);
@@ -253,8 +254,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
             accepted.push(trial.effect);
             threshold *= ESCALATION;
         } else {
-            excluded.push(trial.effect.name);
-            failed.push(decision::Rejected {
+            failures.failed(decision::Rejected {
                 name: trial.effect.name,
                 why: format!(
                     "{}, but modelled in the simulator the validation RMSE went {before:.3} → {after:.3} N ({:.0} % of the excess; needs {:.1} % lower{})",
@@ -281,6 +281,12 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
         .filter(|(_, e)| *e > 0.0)
         .max_by(|a, b| a.1.total_cmp(&b.1))
         .map(|(name, _)| name);
+    // A candidate tried again after a failed trial keeps its last round's reason.
+    let failed: Vec<decision::Rejected> = failures
+        .into_reasons()
+        .into_iter()
+        .filter(|f| rejected.iter().all(|r| r.name != f.name))
+        .collect();
     rejected.extend(failed);
     let heldout = split.heldout();
     let verdict = unexplained::assess(&current, &heldout, noise, closest);

@@ -28,6 +28,12 @@ impl Effect for NonlinearStiffness {
         NAME
     }
 
+    /// Per-site stiffness mimics a stiffening law when sites are pressed to different
+    /// depths (see `site_heterogeneity`).
+    fn rivals(&self) -> &'static [&'static str] {
+        &["site_heterogeneity"]
+    }
+
     fn signature(&self, series: &[Series], train: &[bool], base: Base) -> Option<Signature> {
         signature(series, train, base)
     }

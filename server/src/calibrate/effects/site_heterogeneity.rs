@@ -22,6 +22,12 @@ impl Effect for SiteHeterogeneity {
         NAME
     }
 
+    /// Sites pressed to different depths: a tissue that stiffens with the indentation
+    /// looks like stiffer sites where the presses went deeper.
+    fn rivals(&self) -> &'static [&'static str] {
+        &["nonlinear_stiffness"]
+    }
+
     fn signature(&self, series: &[Series], train: &[bool], base: Base) -> Option<Signature> {
         signature(series, train, base)
     }
