@@ -90,7 +90,7 @@ def machine_alone(env_step_bin: str, seconds: float, counts: list[int]) -> dict[
 
 
 def measure(seconds: float, repeats: int, thread_counts: list[int], batches: list[int],
-            alone: dict[int, float] | None = None, client_counts: list[int] = [1]) -> dict:
+            alone: dict[int, float] | None = None, client_counts: tuple[int, ...] = (1,)) -> dict:
     cpus = cores_in_order()
     runs: dict[int, dict[int, list[float]]] = {}
     clients_runs: dict[int, dict[tuple[int, int], list[float]]] = {}
@@ -155,13 +155,13 @@ def measure(seconds: float, repeats: int, thread_counts: list[int], batches: lis
 
 
 def run(seconds: float, repeats: int, threads: list[int], batches: list[int],
-        env_step_bin: str | None, clients: list[int] = [1]) -> dict:
+        env_step_bin: str | None, clients: tuple[int, ...] = (1,)) -> dict:
     """`measure` at the thread counts this machine has cores for (1 always), with the
     machine alone when `env_step_bin` is given."""
     cores = len(os.sched_getaffinity(0))
     threads = sorted({1, *(n for n in threads if n <= cores)})
     alone = machine_alone(env_step_bin, seconds, threads) if env_step_bin else None
-    return measure(seconds, repeats, threads, batches, alone, sorted({1, *clients}))
+    return measure(seconds, repeats, threads, batches, alone, tuple(sorted({1, *clients})))
 
 
 def report(result: dict) -> list[str]:
