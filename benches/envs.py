@@ -122,7 +122,7 @@ def main() -> None:
     if args.scaling:
         scaling_result = scaling.run(args.seconds, args.repeats, list(scaling.THREADS),
                                      list(scaling.BATCHES), args.env_step_bin,
-                                     list(scaling.CLIENTS))
+                                     scaling.CLIENTS)
         scaling_lines = ["", "Scaling (benches/scaling.py):", "", *scaling.report(scaling_result)]
         os.sched_setaffinity(0, {CLIENT_CPU})
     os.sched_setaffinity(0, set(range(os.cpu_count() or 1)))
