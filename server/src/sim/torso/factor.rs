@@ -102,7 +102,7 @@ impl SystemFactor {
         let n = system.diag.len();
         // Column j of the lower triangle holds the diagonal, then rows i > j of its edges.
         let mut below: Vec<Vec<usize>> = vec![Vec::new(); n];
-        for &(i, j, _) in system.edges {
+        for &(i, j, _) in system.links.edges() {
             let (lo, hi) = (i.min(j), i.max(j));
             if lo != hi {
                 below[lo].push(hi);
@@ -123,7 +123,8 @@ impl SystemFactor {
             col_ptr.push(row_idx.len());
         }
         let edge_at = system
-            .edges
+            .links
+            .edges()
             .iter()
             .map(|&(i, j, _)| {
                 let (lo, hi) = (i.min(j), i.max(j));
@@ -191,7 +192,7 @@ impl SystemFactor {
         for (&at, &d) in pattern.diag_at.iter().zip(system.diag) {
             self.matrix[at] += d;
         }
-        for (&at, &(i, j, w)) in pattern.edge_at.iter().zip(system.edges) {
+        for (&at, &(i, j, w)) in pattern.edge_at.iter().zip(system.links.edges()) {
             let c = system.edge_coef * w;
             self.matrix[pattern.diag_at[i]] += c;
             self.matrix[pattern.diag_at[j]] += c;

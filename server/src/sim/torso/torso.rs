@@ -7,7 +7,7 @@ use super::layout::ShellLayout;
 use super::params::{TorsoParamError, TorsoParams};
 use super::relaxation::StructuralRelaxation;
 use super::skin::Skin;
-use super::solver::{ContactRow, System, Workspace, conjugate_gradient};
+use super::solver::{ContactRow, Links, System, Workspace, conjugate_gradient};
 use super::tissue_laws::{DepthDamping, POWER_REFERENCE_DEPTH, Stiffening};
 use crate::sim::vec3::{add, cross, scale, sub};
 
@@ -38,6 +38,8 @@ struct Sample {
 pub struct Torso {
     params: TorsoParams,
     layout: ShellLayout,
+    /// The layout's neighbour links, by rows for the solver.
+    links: Links,
     skin: Skin,
     mass: Vec<f64>,
     edge_k: f64,
@@ -80,6 +82,9 @@ pub struct Torso {
     pending_steps: usize,
     pending_time: f64,
     previous_probe_velocity: Option<[f64; 3]>,
+    /// Length of the last implicit step, while `scratch` holds the velocities before it
+    /// (for the next solve's start); `None` after the state was set.
+    previous_dt: Option<f64>,
 }
 
 impl Torso {
@@ -140,6 +145,7 @@ impl Torso {
             stiffening_scale: stiffening.map_or(1.0, |law| law.secant(0.0)),
             stiffening,
             previous_probe_velocity: None,
+            previous_dt: None,
             u: vec![0.0; n],
             v: vec![0.0; n],
             t: 0.0,
@@ -157,6 +163,7 @@ impl Torso {
             last_iterations: 0,
             pending_steps: 0,
             pending_time: 0.0,
+            links: Links::new(n, &layout.edges),
             layout,
         })
     }
@@ -196,6 +203,7 @@ impl Torso {
     pub fn set_state(&mut self, u: &[f64], v: &[f64]) {
         self.u.copy_from_slice(u);
         self.v.copy_from_slice(v);
+        self.previous_dt = None;
         if let Some(relaxation) = &mut self.relaxation {
             relaxation.relax_at(u);
         }
@@ -402,7 +410,7 @@ impl Torso {
         self.gather_samples(dt, probe);
         let mut passes = 0;
         loop {
-            self.solve(dt, cacheable);
+            self.solve(dt, cacheable, passes == 0);
             passes += 1;
             // Drop samples the solve says pull the skin (adhesion), then solve again.
             let before = self.rows.len();
@@ -417,6 +425,8 @@ impl Torso {
             self.u[i] += dt * self.scratch[i];
         }
         std::mem::swap(&mut self.v, &mut self.scratch);
+        // `scratch` now holds the velocities before this step.
+        self.previous_dt = Some(dt);
         if let Some(relaxation) = &mut self.relaxation {
             relaxation.advance(&self.u, dt);
         }
@@ -616,15 +626,17 @@ impl Torso {
 
     /// Solve for the end-of-step velocities into `scratch`: off contact with a kept
     /// factor of exactly this system (built on the first contact-free step of a
-    /// `cacheable` size), else by Jacobi CG warm-started from `v`.
-    fn solve(&mut self, dt: f64, cacheable: bool) {
+    /// `cacheable` size), else by Jacobi CG warm-started from the velocities extrapolated
+    /// over the last two steps (`first`), or from the last pass's solution (a solve again
+    /// after tensile rows were dropped).
+    fn solve(&mut self, dt: f64, cacheable: bool, first: bool) {
         let area = (self.volume_k > 0.0).then_some(self.layout.area.as_slice());
         // The elastic elements' scale: the relaxation branches' `1 + Σ ratio` on the
         // stiffening law's secant (`+ 0.0` exactly without one).
         let elastic = self.elastic_scale + (self.stiffening_scale - 1.0);
         let system = System {
             diag: &self.diag,
-            edges: &self.layout.edges,
+            links: &self.links,
             edge_coef: dt * self.edge_c * self.damping_scale + dt * dt * self.edge_k * elastic,
             volume: area.map(|a| (a, dt * dt * self.volume_k * elastic)),
             contacts: &self.rows,
@@ -660,7 +672,18 @@ impl Torso {
                 return;
             }
         }
-        self.scratch.copy_from_slice(&self.v);
+        if first {
+            match self.previous_dt {
+                // Linear extrapolation: the start's error falls from dt·v̇ to dt²·v̈.
+                Some(previous) if previous > 0.0 => {
+                    let ratio = dt / previous;
+                    for (x, v) in self.scratch.iter_mut().zip(&self.v) {
+                        *x = v + (v - *x) * ratio;
+                    }
+                }
+                _ => self.scratch.copy_from_slice(&self.v),
+            }
+        }
         self.last_iterations = conjugate_gradient(
             &system,
             &self.rhs,
@@ -803,7 +826,7 @@ impl Torso {
             .collect();
         let system = System {
             diag: &diag,
-            edges: &self.layout.edges,
+            links: &self.links,
             edge_coef: self.edge_k * scale,
             volume: (self.volume_k > 0.0)
                 .then_some((self.layout.area.as_slice(), self.volume_k * scale)),
@@ -854,7 +877,7 @@ impl Torso {
         for _ in 0..20 {
             let system = System {
                 diag: &diag,
-                edges: &self.layout.edges,
+                links: &self.links,
                 edge_coef: self.edge_k * scale,
                 volume: (self.volume_k > 0.0)
                     .then_some((self.layout.area.as_slice(), self.volume_k * scale)),
