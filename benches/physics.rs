@@ -5,6 +5,9 @@
 //! - `torso_press`: the torso alone under a kinematic probe pressing 8 mm and sliding
 //!   (the solver works every step; a torso at rest costs almost nothing);
 //! - `torso_press_2x`: the same with about twice the particles (scaling check);
+//! - `torso_replay`: the same press on the torso a calibration replays (10 % of the
+//!   particle mass, the same N/m: `calibrate::replay::MASS_SHARE`), whose worse-conditioned
+//!   solve is most of `echogym calibrate`'s time;
 //! - `torso_rigid_bodies`: design B — the same particles as rapier rigid bodies (locked to
 //!   slide along their normal, our springs as forces, contacts by rapier);
 //! - `arm_alone`: the Panda holding its pose with gravity compensation recomputed each step;
@@ -14,6 +17,7 @@
 
 use std::time::Instant;
 
+use echogym::calibrate::replay::MASS_SHARE;
 use echogym::sim::controller::{Osc, OscParams};
 use echogym::sim::robot::RobotKind;
 use echogym::sim::scene::{Scene, SceneParams};
@@ -326,7 +330,19 @@ fn main() {
         .layout()
         .len();
 
+    let replay = TorsoParams {
+        density: default.density * MASS_SHARE,
+        stiffness: default.stiffness / MASS_SHARE,
+        damping: default.damping / MASS_SHARE,
+        ..default.clone()
+    };
+
     let mut out = serde_json::Map::new();
+    let (r, runs) = rate(repeats, seconds, || torso_press(replay.clone()));
+    out.insert(
+        "torso_replay".into(),
+        json!({"steps_per_s": r, "runs": runs, "particles": particles, "mass_share": MASS_SHARE}),
+    );
     let (r, runs) = rate(repeats, seconds, || torso_press(default.clone()));
     out.insert("torso_press".into(), json!({"steps_per_s": r, "runs": runs, "particles": particles, "dofs": particles, "bodies": 0}));
     let (r, runs) = rate(repeats, seconds, || torso_press(double.clone()));

@@ -46,6 +46,8 @@ def main(rust_path: str, mujoco_path: str) -> None:
         f"{ours['torso_press']['particles']} particles | {mj('torso_alone')} | {mj_counts('torso_alone')} |",
         f"| (a) torso alone, 2× particles | {r['torso_press_2x']:,.0f} | "
         f"{ours['torso_press_2x']['particles']} particles | | |",
+        f"| (a) torso as calibration replays it (10 % of the mass) | {r['torso_replay']:,.0f} | "
+        f"{ours['torso_replay']['particles']} particles | | |",
         f"| (a) design B: particles as rapier rigid bodies | {r['torso_rigid_bodies']:,.0f} | "
         f"{ours['torso_rigid_bodies']['bodies']} bodies | | |",
         f"| (b) arm alone (Panda, gravity compensation each step) | {r['arm_alone']:,.0f} | 7 DoF | "
@@ -74,6 +76,7 @@ def main(rust_path: str, mujoco_path: str) -> None:
     keys = {
         "torso_press": r["torso_press"],
         "torso_press_2x": r["torso_press_2x"],
+        "torso_replay": r["torso_replay"],
         "torso_rigid_bodies": r["torso_rigid_bodies"],
         "arm_alone": r["arm_alone"],
         "arm_press_slide": press,
