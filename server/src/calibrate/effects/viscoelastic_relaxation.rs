@@ -70,9 +70,17 @@ impl Effect for ViscoelasticRelaxation {
         let tau = |key: &str, value: f64| {
             Parameter::logarithmic(key, value, RELAXATION_TAU_S[0], RELAXATION_TAU_S[1], 0.02)
         };
+        // With two branches the first is the fast one, named so: the report's `ratio`
+        // and `tau_s` are then the branches' total and ratio-weighted mean, and the
+        // intervals are keyed by what was fitted.
+        let (ratio, tau_s) = if model.second_relaxation.is_some() {
+            (FAST_RATIO, FAST_TAU)
+        } else {
+            ("ratio", "tau_s")
+        };
         let mut parameters = vec![
-            Parameter::linear("ratio", r.ratio, (0.0, 10.0, 0.01)),
-            tau("tau_s", r.tau_s),
+            Parameter::linear(ratio, r.ratio, (0.0, 10.0, 0.01)),
+            tau(tau_s, r.tau_s),
         ];
         if let Some(slow) = &model.second_relaxation {
             parameters.push(Parameter::linear(SLOW_RATIO, slow.ratio, (0.0, 10.0, 0.01)));
@@ -97,7 +105,7 @@ impl Effect for ViscoelasticRelaxation {
         }
         let mut r = branch(model);
         match key {
-            "ratio" => r.ratio = value,
+            "ratio" | FAST_RATIO => r.ratio = value,
             _ => r.tau_s = value,
         }
         model.relaxation = Some(r);
@@ -140,6 +148,9 @@ impl Effect for ViscoelasticRelaxation {
 /// Keys of the second (slower) branch.
 const SLOW_RATIO: &str = "slow_ratio";
 const SLOW_TAU: &str = "slow_tau_s";
+/// Keys of the first branch when there are two.
+const FAST_RATIO: &str = "fast_ratio";
+const FAST_TAU: &str = "fast_tau_s";
 
 /// The model's branches (none, one or two).
 fn branches(model: &Model) -> Vec<Relaxation> {
@@ -226,4 +237,46 @@ fn branch(model: &Model) -> Relaxation {
         ratio: 0.5,
         tau_s: 1.0,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// With two branches every fitted key names one branch, and writes that branch: the
+    /// report's `ratio` and `tau_s` (total and weighted mean) never share a key with an
+    /// interval of one branch.
+    #[test]
+    fn two_branches_are_fitted_under_their_own_keys() {
+        let effect = ViscoelasticRelaxation;
+        let mut model = Model::baseline(1000.0, 10.0, 0.0);
+        model.relaxation = Some(Relaxation {
+            ratio: 0.6,
+            tau_s: 1.0,
+        });
+        let keys = |m: &Model| -> Vec<String> {
+            effect.parameters(m).into_iter().map(|p| p.key).collect()
+        };
+        assert_eq!(keys(&model), ["ratio", "tau_s"]);
+        model.second_relaxation = Some(Relaxation {
+            ratio: 0.2,
+            tau_s: 9.0,
+        });
+        assert_eq!(
+            keys(&model),
+            ["fast_ratio", "fast_tau_s", "slow_ratio", "slow_tau_s"]
+        );
+        for (key, value) in [
+            ("fast_ratio", 0.5),
+            ("fast_tau_s", 2.0),
+            ("slow_ratio", 0.3),
+            ("slow_tau_s", 20.0),
+        ] {
+            effect.set(&mut model, key, value);
+        }
+        let fast = model.relaxation.clone().expect("fast branch");
+        let slow = model.second_relaxation.clone().expect("slow branch");
+        assert_eq!((fast.ratio, fast.tau_s), (0.5, 2.0));
+        assert_eq!((slow.ratio, slow.tau_s), (0.3, 20.0));
+    }
 }
