@@ -61,7 +61,10 @@ fn model_json(m: &Model) -> serde_json::Value {
         "relaxation": m.relaxation,
         "second_relaxation": m.second_relaxation,
         "breathing_freq_hz": m.breathing.map(|b| b.0),
-        "breathing_amplitude_m": m.breathing.map(|b| b.1),
+        // The oscillation's amplitude about its mean, and the rise (the scene's
+        // `breathing.amplitude`) that is twice it.
+        "breathing_amplitude_m": m.breathing.map(|b| b.1 / 2.0),
+        "breathing_rise_m": m.breathing.map(|b| b.1),
         "breathing_edge_rise": m.breathing.map(|_| m.breathing_edge_rise),
         "moving_mass_kg": m.moving_mass,
         "sensor_bias_fz_n": m.bias,

@@ -390,7 +390,8 @@ pub fn generate(
     if let Some((f, a, drift)) = model.breathing {
         params.insert(
             "breathing_motion".into(),
-            serde_json::json!({"freq_hz": f, "amplitude_m": a, "drift": drift}),
+            // `a` is the rise; the catalogue's amplitude is half of it.
+            serde_json::json!({"freq_hz": f, "amplitude_m": a / 2.0, "rise_m": a, "drift": drift}),
         );
     }
     if has("tissue_inertia") {

@@ -18,6 +18,12 @@ use crate::sim::torso::{rise_profile, track_at};
 
 const NAME: &str = "breathing_motion";
 
+/// The reported `amplitude_m` is the oscillation's amplitude about its mean, as a
+/// breathing amplitude is usually given (the surface moves between −A and +A); the
+/// scene's `breathing.amplitude` and the report's `rise_m` are the centre's rise from
+/// full exhalation to full inhalation, twice that.
+const RISE_PER_AMPLITUDE: f64 = 2.0;
+
 /// See the module docs.
 pub struct BreathingMotion;
 
@@ -31,7 +37,11 @@ impl Effect for BreathingMotion {
     }
 
     fn apply(&self, params: &Params, model: &mut Model, _setup: &Setup) {
-        model.breathing = Some((number(params, "freq_hz"), number(params, "amplitude_m")));
+        // `amplitude_m` is half the centre's rise (see `RISE_PER_AMPLITUDE`).
+        model.breathing = Some((
+            number(params, "freq_hz"),
+            RISE_PER_AMPLITUDE * number(params, "amplitude_m"),
+        ));
         let list = |key: &str| -> Vec<f64> {
             params
                 .get(key)
@@ -51,9 +61,13 @@ impl Effect for BreathingMotion {
 
     /// The centre rise and the profile (phases and rates stay the signature's).
     fn parameters(&self, model: &Model) -> Vec<Parameter> {
-        let (_, amplitude) = model.breathing.unwrap_or((0.25, 0.0));
+        let (_, rise) = model.breathing.unwrap_or((0.25, 0.0));
         vec![
-            Parameter::linear("amplitude_m", amplitude, (0.0, 0.03, 5e-5)),
+            Parameter::linear(
+                "amplitude_m",
+                rise / RISE_PER_AMPLITUDE,
+                (0.0, 0.015, 2.5e-5),
+            ),
             Parameter::linear("edge_rise", model.breathing_edge_rise, (0.0, 1.0, 0.02)),
         ]
     }
@@ -62,7 +76,7 @@ impl Effect for BreathingMotion {
         match key {
             "amplitude_m" => {
                 if let Some(b) = model.breathing.as_mut() {
-                    b.1 = value;
+                    b.1 = RISE_PER_AMPLITUDE * value;
                 }
             }
             _ => model.breathing_edge_rise = value,
@@ -116,16 +130,22 @@ impl Effect for BreathingMotion {
     }
 
     fn report(&self, model: &Model, _context: &ReportContext<'_>) -> serde_json::Value {
-        let (f, a) = model.breathing.unwrap_or((0.0, 0.0));
-        serde_json::json!({"freq_hz": f, "amplitude_m": a, "edge_rise": model.breathing_edge_rise})
+        let (f, rise) = model.breathing.unwrap_or((0.0, 0.0));
+        serde_json::json!({
+            "freq_hz": f,
+            "amplitude_m": rise / RISE_PER_AMPLITUDE,
+            "rise_m": rise,
+            "edge_rise": model.breathing_edge_rise,
+        })
     }
 
     fn sentence(&self, model: &Model, _context: &ReportContext<'_>) -> String {
-        let (f, a) = model.breathing.unwrap_or((0.0, 0.0));
+        let (f, rise) = model.breathing.unwrap_or((0.0, 0.0));
         format!(
-            "the surface moves periodically at {f:.3} Hz ({:.1} breaths/min, ≈ {:.1} mm at the centre, {:.0} % of that at the edges); added breathing driving the torso's top",
+            "the surface moves periodically at {f:.3} Hz ({:.1} breaths/min, ±{:.1} mm about its mean at the centre, a {:.1} mm rise, {:.0} % of that at the edges); added breathing driving the torso's top",
             f * 60.0,
-            1000.0 * a,
+            1000.0 * rise / RISE_PER_AMPLITUDE,
+            1000.0 * rise,
             100.0 * model.breathing_edge_rise
         )
     }
@@ -267,14 +287,15 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
     // a constant there. The sinusoids must explain part of the training
     // residual's variation within steady stretches.
     let explained = steady_share_explained(series, train, &rest, &breath_only, &base);
-    if std::env::var("DBG_STEADY").is_ok() {
-        eprintln!("steady share {explained:?}");
-    }
+    tracing::debug!("breathing: steady share explained {explained:?}");
     if explained.is_some_and(|share| share < BREATHING_STEADY_SHARE) {
         return None;
     }
     params.insert("freq_hz".into(), f.into());
-    params.insert("amplitude_m".into(), centre_rise.into());
+    params.insert(
+        "amplitude_m".into(),
+        (centre_rise / RISE_PER_AMPLITUDE).into(),
+    );
     params.insert("edge_rise".into(), edge_rise.into());
     params.insert("phase_rad".into(), serde_json::json!(phases));
     params.insert("freq_by_recording_hz".into(), serde_json::json!(freqs));
@@ -645,6 +666,44 @@ mod tests {
     use super::*;
     use rand::{RngExt, SeedableRng};
     use rand_pcg::Pcg64Mcg;
+
+    /// `amplitude_m` is half the rise everywhere it is read or written: the fitted
+    /// parameter (and so its interval), the report, and the simulator's rise.
+    #[test]
+    fn amplitude_is_half_the_rise() {
+        let effect = BreathingMotion;
+        let mut model = Model::baseline(1000.0, 10.0, 0.0);
+        model.breathing = Some((0.25, 0.004));
+        let fitted = effect.parameters(&model);
+        assert_eq!(fitted[0].key, "amplitude_m");
+        assert!((fitted[0].value - 0.002).abs() < 1e-12);
+        effect.set(&mut model, "amplitude_m", 0.003);
+        assert_eq!(model.breathing, Some((0.25, 0.006)));
+        let context = ReportContext {
+            site_stiffness: &[],
+            session_span_s: 100.0,
+        };
+        let report = effect.report(&model, &context);
+        assert!((report["amplitude_m"].as_f64().unwrap() - 0.003).abs() < 1e-12);
+        assert!((report["rise_m"].as_f64().unwrap() - 0.006).abs() < 1e-12);
+        let mut params = Params::new();
+        params.insert("freq_hz".into(), 0.3.into());
+        params.insert("amplitude_m".into(), 0.0015.into());
+        params.insert("edge_rise".into(), 0.5.into());
+        let mut applied = Model::baseline(1000.0, 10.0, 0.0);
+        let torso = crate::sim::torso::TorsoParams::default();
+        let setup = Setup {
+            nominal_surface_z: torso.top_z(),
+            center_xy: [0.0, 0.0],
+            sites: Vec::new(),
+            recording_sites: Vec::new(),
+            session: Default::default(),
+            approaches: Vec::new(),
+            torso,
+        };
+        effect.apply(&params, &mut applied, &setup);
+        assert_eq!(applied.breathing, Some((0.3, 0.003)));
+    }
 
     /// 40 s held 6 mm deep (one steady stretch), 100 Hz.
     fn held(t: Vec<f64>, residual: Vec<f64>) -> Series {
