@@ -2,9 +2,10 @@
 //! the simulator, with forward-difference Jacobians and box bounds (steps are clamped
 //! into the box). The damping follows Nielsen's update (it falls by up to 3× after a
 //! step the linear model predicted well, rises after a poor one) and a failed step
-//! retries from at least `LAMBDA_RETRY`. Each Jacobian costs a replay per parameter, so between them it is
-//! carried by Broyden's rank-one update after every accepted step and recomputed only
-//! after a failed step, at a suspected convergence and at the end (for the intervals).
+//! retries from at least `LAMBDA_RETRY`. Each Jacobian costs a replay per parameter, so
+//! between them it is carried by Broyden's rank-one update after every accepted step
+//! and recomputed only after a failed step, at a suspected convergence and at the end
+//! (for the intervals).
 //!
 //! Residuals come in **blocks** (one per recording) and each parameter says which blocks
 //! it moves: a site's surface height only changes the recordings made there, so its
