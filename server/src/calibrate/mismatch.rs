@@ -21,9 +21,9 @@ pub fn phase(s: &Series, i: usize) -> &'static str {
     if s.lateral_speed[i] > 2.0 * STILL {
         return "sliding";
     }
-    if s.vz[i] < -STILL {
+    if s.vz_held[i] < -STILL {
         "loading"
-    } else if s.vz[i] > STILL {
+    } else if s.vz_held[i] > STILL {
         "unloading"
     } else {
         "hold"

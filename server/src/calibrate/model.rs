@@ -323,6 +323,20 @@ pub fn fit_model(
         fit.evaluations,
         started.elapsed().as_secs_f64()
     );
+    tracing::debug!(
+        "fitted: {}",
+        packed
+            .names
+            .iter()
+            .zip(packed.x.iter().zip(&fit.x))
+            .zip(&packed.log)
+            .map(|((name, (start, end)), &log)| {
+                let show = |v: f64| if log { v.exp() } else { v };
+                format!("{name} {:.4} → {:.4}", show(*start), show(*end))
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
     let mut fitted = unpack(&model, &packed.names, &packed.log, &fit.x);
     // Record which surface parameters this fit determined, and from which recordings.
     let source = match free.geometry {

@@ -722,6 +722,7 @@ mod tests {
             along_path: vec![0.0; n],
             breath_rise: vec![0.0; n],
             vz: vec![0.0; n],
+            vz_held: vec![0.0; n],
             lateral_speed: vec![0.0; n],
             az: vec![0.0; n],
             dt: 0.01,

@@ -237,8 +237,8 @@ pub fn readjusted(series: &[Series], train: &[bool], base: Base) -> Vec<Vec<f64>
     fit_shared(series, train, &[0.0], base, &|_, _| Vec::new()).2
 }
 
-/// Fit effect `name`'s signature to the residuals (`k_eff`: the baseline's contact
-/// A steady stretch: in contact, `|v_z|` below this [m/s] ...
+/// A steady stretch: in contact, the held rate `|v_z|` ([`Series::vz_held`]) below
+/// this [m/s] ...
 const STEADY_SPEED: f64 = 0.001;
 /// ... for at least this long \[s\].
 const STEADY_MIN_S: f64 = 1.0;
@@ -249,12 +249,12 @@ pub(super) fn steady_stretches(s: &Series) -> Vec<std::ops::Range<usize>> {
     let mut out = Vec::new();
     let mut i = 0;
     while i < s.len() {
-        if !(s.contact[i] && s.vz[i].abs() < STEADY_SPEED) {
+        if !(s.contact[i] && s.vz_held[i].abs() < STEADY_SPEED) {
             i += 1;
             continue;
         }
         let start = i;
-        while i < s.len() && s.contact[i] && s.vz[i].abs() < STEADY_SPEED {
+        while i < s.len() && s.contact[i] && s.vz_held[i].abs() < STEADY_SPEED {
             i += 1;
         }
         if s.t[i - 1] - s.t[start] >= STEADY_MIN_S {
