@@ -80,43 +80,14 @@ pub struct Series {
 pub const HOLD_RATE_S: f64 = 0.05;
 
 /// The probe's vertical rate from a Gaussian-weighted line through its positions
-/// (σ = [`HOLD_RATE_S`], samples within 3 σ) [m/s]. Holds are found with this rather
+/// (σ = [`HOLD_RATE_S`]; `trajectory`'s local fit) [m/s]. Holds are found with this rather
 /// than with the replay's velocity: where a file has no velocity columns, that is the
 /// slope of a 10 ms fit, and 48 µm of encoder noise at 100–1000 Hz gives it 0.5–2 mm/s
 /// of noise in a hold — above the 1 mm/s that tells a hold from a move, so no hold of
 /// a second was ever found (independent generator, seed 2). Here the same noise leaves
 /// 0.07–0.2 mm/s; a press at ≥ 5 mm/s still reads as a move.
 pub fn held_rate(t: &[f64], p: &[[f64; 3]]) -> Vec<f64> {
-    let n = t.len();
-    let reach = 3.0 * HOLD_RATE_S;
-    let (mut lo, mut hi) = (0, 0);
-    (0..n)
-        .map(|i| {
-            while t[i] - t[lo] > reach {
-                lo += 1;
-            }
-            while hi < n && t[hi] - t[i] <= reach {
-                hi += 1;
-            }
-            let (mut sw, mut st, mut sz, mut stt, mut stz) = (0.0, 0.0, 0.0, 0.0, 0.0);
-            for j in lo..hi {
-                let d = t[j] - t[i];
-                let w = (-0.5 * (d / HOLD_RATE_S).powi(2)).exp();
-                let z = p[j][2] - p[i][2];
-                sw += w;
-                st += w * d;
-                sz += w * z;
-                stt += w * d * d;
-                stz += w * d * z;
-            }
-            let det = sw * stt - st * st;
-            if det > 1e-300 {
-                (sw * stz - st * sz) / det
-            } else {
-                0.0
-            }
-        })
-        .collect()
+    super::trajectory::line_rate_z(t, p, HOLD_RATE_S)
 }
 
 /// Position along a recording's path (see [`Series::along_path`]).

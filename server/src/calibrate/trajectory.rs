@@ -163,6 +163,16 @@ struct Fitted {
     slope_gain: Vec<f64>,
 }
 
+/// The vertical slope of a line through `p` with Gaussian weights of width `sigma`, at
+/// every sample [m/s].
+pub fn line_rate_z(t: &[f64], p: &[[f64; 3]], sigma: f64) -> Vec<f64> {
+    local_fit(t, p, sigma, 1)
+        .slopes
+        .iter()
+        .map(|s| s[2])
+        .collect()
+}
+
 /// The local polynomial fit (Gaussian weights of width `sigma`, `degree`) of `x` at
 /// every sample: values and slopes. Where a gap leaves too few samples for the degree, a
 /// quadratic, else the raw sample (slope 0 from the fit's point of view is not used:
