@@ -39,6 +39,9 @@ pub struct Series {
     pub residual: Vec<f64>,
     /// Probe touching the skin in the baseline replay.
     pub contact: Vec<bool>,
+    /// Probe clear of the skin by at least [`FREE_AIR_CLEARANCE_M`] in the replay: where
+    /// nothing but the sensor moves the measured force (no body model is wrong there).
+    pub free_air: Vec<bool>,
     /// Depth below the model's skin \[m\] (negative above): below the fitted rest
     /// surface, plus the modelled breath's rise there (so depth-dependent signatures see
     /// the indentation the simulator has).
@@ -75,6 +78,11 @@ pub struct Series {
     /// (see `onset::approaches`): a surface that moves (breathing) was read there.
     pub onsets: Vec<f64>,
 }
+
+/// Clearance above the model's skin for a sample to count as free air \[m\]: more than
+/// the surface errors and breaths the baseline leaves, and at the probe's lift-off speeds
+/// (≥ 5 mm/s) a sensor filter's or delay's tail has died out before it is reached.
+pub const FREE_AIR_CLEARANCE_M: f64 = 0.004;
 
 /// Width of the Gaussian weights of the line whose slope is [`Series::vz_held`] \[s\].
 pub const HOLD_RATE_S: f64 = 0.05;
@@ -168,6 +176,12 @@ impl Series {
             predicted: prediction.fz.clone(),
             residual,
             contact: prediction.contact.clone(),
+            free_air: prediction
+                .contact
+                .iter()
+                .zip(&prediction.depth)
+                .map(|(&c, &d)| !c && d < -FREE_AIR_CLEARANCE_M)
+                .collect(),
             depth: prediction.depth.clone(),
             along_path,
             breath_rise: if prediction.breath_rise.len() == n {

@@ -4,16 +4,13 @@
 //! sensor's own low-pass, or a log resampled from a lower rate, makes neighbouring
 //! samples alike and the estimate falls far below the real noise (a resampled real log
 //! gave 0.006 N for a noise of ≈ 0.1 N). So σ is measured where nothing but noise moves
-//! the force — **in free air**, well clear of the skin, each stretch detrended (a
+//! the force — **in free air** ([`Series::free_air`]), each stretch detrended (a
 //! drifting bias is not noise) — and only without enough free air from second
 //! differences of the force thinned to ≤ 50 Hz, where a low-passed noise is close to
 //! white again.
 
 use super::features::Series;
 
-/// Clearance above the surface \[m\] for a free-air sample (breathing and surface
-/// errors stay below it).
-const CLEARANCE: f64 = 0.004;
 /// Free air needed for the free-air estimate \[s\] (summed over recordings).
 const MIN_FREE_AIR_S: f64 = 1.0;
 /// Stretch length the free-air force is detrended over \[s\].
@@ -58,7 +55,7 @@ pub fn noise_floor(series: &[Series]) -> (f64, NoiseSource) {
             run.clear();
         };
         for i in 0..s.len() {
-            if !s.contact[i] && s.depth[i] < -CLEARANCE {
+            if s.free_air[i] {
                 run.push(i);
                 if run.len() == stretch {
                     flush(&mut run);

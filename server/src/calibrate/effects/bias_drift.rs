@@ -7,7 +7,7 @@
 //! and named instead of it when both are found.
 
 use super::linear::*;
-use super::{Base, Effect, Parameter, Params, Readjust, ReportContext, Signature, number};
+use super::{Base, Effect, Parameter, Params, Readjust, Region, ReportContext, Signature, number};
 use crate::calibrate::features::Series;
 use crate::calibrate::replay::{Model, Setup};
 
@@ -19,6 +19,10 @@ pub struct BiasDrift;
 impl Effect for BiasDrift {
     fn name(&self) -> &'static str {
         NAME
+    }
+
+    fn judged_in(&self) -> Region {
+        Region::FreeAir
     }
 
     fn contains(&self) -> Option<&'static str> {

@@ -718,6 +718,7 @@ mod tests {
             predicted: vec![0.0; n],
             residual,
             contact: vec![true; n],
+            free_air: vec![false; n],
             depth: vec![0.006; n],
             along_path: vec![0.0; n],
             breath_rise: vec![0.0; n],

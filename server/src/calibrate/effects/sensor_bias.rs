@@ -3,7 +3,7 @@
 //! Element: the sensor's bias (`ft_sensor.bias`).
 
 use super::linear::*;
-use super::{Base, Effect, Parameter, Params, Readjust, ReportContext, Signature, number};
+use super::{Base, Effect, Parameter, Params, Readjust, Region, ReportContext, Signature, number};
 use crate::calibrate::features::Series;
 use crate::calibrate::replay::{Model, Setup};
 
@@ -15,6 +15,10 @@ pub struct SensorBias;
 impl Effect for SensorBias {
     fn name(&self) -> &'static str {
         NAME
+    }
+
+    fn judged_in(&self) -> Region {
+        Region::FreeAir
     }
 
     fn signature(&self, series: &[Series], train: &[bool], base: Base) -> Option<Signature> {
