@@ -533,12 +533,12 @@ struct Trial {
 impl Trial {
     /// Relative validation RMSE reduction over all samples (what ranks contenders).
     fn gain(&self) -> f64 {
-        (self.before - self.after) / self.before.max(1e-12)
+        relative_drop(self.before, self.after)
     }
 
     /// Relative validation RMSE reduction where the effect is weighed (what gates it).
     fn gate_gain(&self) -> f64 {
-        (self.gate_before - self.gate_after) / self.gate_before.max(1e-12)
+        relative_drop(self.gate_before, self.gate_after)
     }
 }
 
@@ -802,18 +802,23 @@ struct Figures {
 impl Figures {
     /// Relative validation RMSE reduction.
     fn gain_v(&self) -> f64 {
-        (self.before_v - self.after_v) / self.before_v.max(1e-12)
+        relative_drop(self.before_v, self.after_v)
     }
 
     /// Relative train RMSE reduction.
     fn gain_t(&self) -> f64 {
-        (self.before_t - self.after_t) / self.before_t.max(1e-12)
+        relative_drop(self.before_t, self.after_t)
     }
 
     /// Share of the validation excess over the noise floor `noise` explained.
     fn explained(&self, noise: f64) -> f64 {
         explained_share(self.before_v, self.after_v, noise)
     }
+}
+
+/// How much lower `after` is than `before`, relative to `before`.
+fn relative_drop(before: f64, after: f64) -> f64 {
+    (before - after) / before.max(1e-12)
 }
 
 /// Share of the excess of an RMSE `before` over the noise floor `noise` that going to
