@@ -141,6 +141,7 @@ pub fn fit(setup: &Setup, dataset: &Dataset, split: &Split) -> Baseline {
         physics: true,
         offset: true,
         geometry: Geometry::Fixed,
+        above_hz: None,
     };
     let (model, _) = fit_model(
         setup,
@@ -198,6 +199,7 @@ pub fn surface_elsewhere(
         physics: false,
         offset: false,
         geometry: Geometry::Undetermined,
+        above_hz: None,
     };
     let (model, _) = fit_model(
         setup,

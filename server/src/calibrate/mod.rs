@@ -24,6 +24,7 @@ pub mod effects;
 pub mod features;
 pub mod fit;
 pub mod geometry;
+pub mod high_pass;
 pub mod mismatch;
 pub mod model;
 pub mod noise;
@@ -37,6 +38,7 @@ pub mod synth;
 pub mod thesis_method;
 pub mod trajectory;
 pub mod unexplained;
+pub mod weighing;
 
 use std::path::{Path, PathBuf};
 

@@ -9,6 +9,7 @@ use super::decision::Accepted;
 use super::effects;
 use super::fit::{Bound, Convergence, levenberg_marquardt_blocks};
 use super::geometry::{PATH_PRIOR, PRIOR_FORCE_N, Source};
+use super::high_pass::high_pass;
 use super::replay::{Model, ReplayCache, Setup};
 
 /// Time constants a relaxation branch may take \[s\] (the signature's grid spans the same).
@@ -54,6 +55,11 @@ pub struct Free {
     pub offset: bool,
     /// The per-site surface.
     pub geometry: Geometry,
+    /// What the fit sees: the force residual high-passed above this frequency \[Hz\]
+    /// (a candidate weighed above the breathing band is refitted there, so that a
+    /// breath's misfit below it does not set its parameters: `weighing`); `None`, the
+    /// whole residual.
+    pub above_hz: Option<f64>,
 }
 
 /// Which surface parameters a fit moves.
@@ -76,6 +82,7 @@ impl Free {
         physics: true,
         offset: true,
         geometry: Geometry::Training,
+        above_hz: None,
     };
 }
 
@@ -286,14 +293,21 @@ pub fn fit_model(
             .map(|(&b, p)| {
                 let i = fit_on[b];
                 let rec = &dataset.recordings[i];
-                let mut rows: Vec<f64> = (0..rec.len())
-                    .step_by(strides[b])
-                    .map(|k| rec.f[k][2] - p.fz[k])
-                    .collect();
+                let seen = |x: Vec<f64>| match free.above_hz {
+                    Some(hz) => high_pass(&x, 1.0 / rec.rate_hz(), hz),
+                    None => x,
+                };
+                let channel = |value: &dyn Fn(usize) -> f64| -> Vec<f64> {
+                    seen((0..rec.len()).map(value).collect())
+                        .into_iter()
+                        .step_by(strides[b])
+                        .collect()
+                };
+                let mut rows = channel(&|k| rec.f[k][2] - p.fz[k]);
                 if lateral {
-                    for k in (0..rec.len()).step_by(strides[b]) {
-                        rows.extend([rec.f[k][0] - p.fxy[k][0], rec.f[k][1] - p.fxy[k][1]]);
-                    }
+                    let x = channel(&|k| rec.f[k][0] - p.fxy[k][0]);
+                    let y = channel(&|k| rec.f[k][1] - p.fxy[k][1]);
+                    rows.extend(x.into_iter().zip(y).flat_map(|(x, y)| [x, y]));
                 }
                 if with_prior && let Some(path) = candidate.paths.iter().find(|p| p.recording == i)
                 {

@@ -18,6 +18,12 @@ use crate::sim::torso::{rise_profile, track_at};
 
 const NAME: &str = "breathing_motion";
 
+/// The slowest and the fastest common breathing rate the signature considers \[Hz\]
+/// (each recording's own rate within ±15 % of the common one).
+pub const SLOWEST_HZ: f64 = 0.12;
+/// See [`SLOWEST_HZ`].
+pub const FASTEST_HZ: f64 = 0.54;
+
 /// The reported `amplitude_m` is the oscillation's amplitude about its mean, as a
 /// breathing amplitude is usually given (the surface moves between −A and +A); the
 /// scene's `breathing.amplitude` and the report's `rise_m` are the centre's rise from
@@ -166,7 +172,9 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
         .zip(&base)
         .map(|(s, b)| s.residual.iter().zip(b).map(|(r, b)| r - b).collect())
         .collect();
-    let grid: Vec<f64> = (0..=140).map(|k| 0.12 + k as f64 * 0.003).collect();
+    let grid: Vec<f64> = (0..=140)
+        .map(|k| SLOWEST_HZ + k as f64 * (FASTEST_HZ - SLOWEST_HZ) / 140.0)
+        .collect();
     let mut best = (f64::INFINITY, 0.0);
     for &f in &grid {
         let sse: f64 = series

@@ -6,7 +6,7 @@
 //! the ratio means at the probe what it means here.
 
 use super::linear::*;
-use super::{Base, Effect, Parameter, Params, Readjust, ReportContext, Signature, number};
+use super::{Base, Effect, Parameter, Params, Readjust, Region, ReportContext, Signature, number};
 use crate::calibrate::features::Series;
 use crate::calibrate::replay::{Model, Setup};
 use crate::sim::torso::{DepthDamping, POWER_REFERENCE_DEPTH};
@@ -22,6 +22,11 @@ pub struct DepthDependentDamping;
 impl Effect for DepthDependentDamping {
     fn name(&self) -> &'static str {
         NAME
+    }
+
+    /// Above the breathing band once a breath is modelled: its force follows the probe's velocity.
+    fn judged_in(&self) -> Region {
+        Region::AboveBreathing
     }
 
     fn signature(&self, series: &[Series], train: &[bool], base: Base) -> Option<Signature> {

@@ -4,6 +4,7 @@
 
 use super::{Base, Readjust};
 use crate::calibrate::features::Series;
+use crate::calibrate::high_pass::high_pass;
 use rapier3d::na::{DMatrix, DVector};
 
 /// Least squares `X·β ≈ y` over the rows where `use_row`, by SVD of the column-scaled
@@ -82,6 +83,12 @@ pub(super) fn fit_scored(
 ) -> (f64, Vec<f64>, Vec<Vec<f64>>, f64) {
     let level: Vec<Vec<f64>> = series.iter().map(|s| level_column(s, base)).collect();
     let targets: Vec<Vec<f64>> = series.iter().map(|s| s.residual.clone()).collect();
+    // What the fit sees: the whole, or the band above `fit_above_hz`.
+    let seen = |s: &Series, x: &[f64]| match base.fit_above_hz {
+        Some(hz) => high_pass(x, s.dt, hz),
+        None => x.to_vec(),
+    };
+    let fit_targets: Vec<Vec<f64>> = series.iter().map(|s| seen(s, &s.residual)).collect();
     let mut best: Option<(f64, Solved)> = None;
     for &g in grid {
         let cols: Vec<Vec<Vec<f64>>> = series
@@ -93,7 +100,16 @@ pub(super) fn fit_scored(
             })
             .collect();
         let bound = damping.then(|| (cols[0].len() - 1, base.c));
-        let solved = solve(&targets, &cols, &level, train, bound);
+        let solved = if base.fit_above_hz.is_some() {
+            let fit_cols: Vec<Vec<Vec<f64>>> = series
+                .iter()
+                .zip(&cols)
+                .map(|(s, c)| c.iter().map(|x| seen(s, x)).collect())
+                .collect();
+            solve((&fit_targets, &fit_cols), &cols, &level, train, bound)
+        } else {
+            solve((&targets, &cols), &cols, &level, train, bound)
+        };
         if best.as_ref().is_none_or(|b| solved.sse < b.1.sse) {
             best = Some((g, solved));
         }
@@ -132,13 +148,14 @@ struct Solved {
     predicted: Vec<Vec<f64>>,
 }
 
-/// Least squares of `targets ≈ cols·β + level·a_k` on the training series, `a_k` one
-/// level per training series; each held-out series' level fitted afterwards on its own
-/// target minus the shared prediction. `damping`: the shared column that is the
+/// Least squares of `targets ≈ fit_cols·β + level·a_k` on the training series, `a_k`
+/// one level per training series, and the prediction `cols·β` of every series (the fit
+/// may see the columns high-passed: `Base::fit_above_hz`); each held-out series' level
+/// fitted afterwards on its own target minus the shared prediction. `damping`: the shared column that is the
 /// damping readjustment and the largest decrease allowed (refitted without it when the
 /// bound is hit).
 fn solve(
-    targets: &[Vec<f64>],
+    (targets, fit_cols): (&[Vec<f64>], &[Vec<Vec<f64>>]),
     cols: &[Vec<Vec<f64>>],
     level: &[Vec<f64>],
     train: &[bool],
@@ -152,7 +169,7 @@ fn solve(
     let mut stacked = vec![Vec::with_capacity(rows); p + levelled.len()];
     let mut y = Vec::with_capacity(rows);
     for (position, &k) in trained.iter().enumerate() {
-        for (j, c) in cols[k].iter().enumerate() {
+        for (j, c) in fit_cols[k].iter().enumerate() {
             stacked[j].extend_from_slice(c);
         }
         for (j, column) in stacked[p..].iter_mut().enumerate() {
@@ -313,7 +330,23 @@ pub(super) fn fit_sensor_stage(
             .map(|(s, l)| s.residual.iter().zip(l).map(|(r, l)| r - l).collect())
             .collect();
         let bound = Some((cols[0].len() - 1, base.c));
-        let solved = solve(&targets, &cols, &level, train, bound);
+        let solved = match base.fit_above_hz {
+            Some(hz) => {
+                let seen = |s: &Series, x: &[f64]| high_pass(x, s.dt, hz);
+                let fit_targets: Vec<Vec<f64>> = series
+                    .iter()
+                    .zip(&targets)
+                    .map(|(s, y)| seen(s, y))
+                    .collect();
+                let fit_cols: Vec<Vec<Vec<f64>>> = series
+                    .iter()
+                    .zip(&cols)
+                    .map(|(s, c)| c.iter().map(|x| seen(s, x)).collect())
+                    .collect();
+                solve((&fit_targets, &fit_cols), &cols, &level, train, bound)
+            }
+            None => solve((&targets, &cols), &cols, &level, train, bound),
+        };
         if best.as_ref().is_none_or(|b| solved.sse < b.1.sse) {
             best = Some((g, solved, shapes));
         }

@@ -3,7 +3,7 @@
 //! sensor's delay stage (`ft_sensor.delay_s`).
 
 use super::linear::*;
-use super::{Base, Effect, Parameter, Params, ReportContext, Signature, number};
+use super::{Base, Effect, Parameter, Params, Region, ReportContext, Signature, number};
 use crate::calibrate::features::Series;
 use crate::calibrate::replay::{Model, Setup};
 
@@ -15,6 +15,11 @@ pub struct SensorDelay;
 impl Effect for SensorDelay {
     fn name(&self) -> &'static str {
         NAME
+    }
+
+    /// Above the breathing band once a breath is modelled: it follows the force's rate.
+    fn judged_in(&self) -> Region {
+        Region::AboveBreathing
     }
 
     fn rivals(&self) -> &'static [&'static str] {

@@ -8,7 +8,7 @@
 //! with slow motion only, the two cannot be told apart (see docs/calibration.md).
 
 use super::linear::*;
-use super::{Base, Effect, Parameter, Params, ReportContext, Signature, number};
+use super::{Base, Effect, Parameter, Params, Region, ReportContext, Signature, number};
 use crate::calibrate::features::Series;
 use crate::calibrate::replay::{Model, Setup};
 use crate::sim::ft_sensor::low_pass_alpha;
@@ -28,6 +28,11 @@ pub struct SensorFilter;
 impl Effect for SensorFilter {
     fn name(&self) -> &'static str {
         NAME
+    }
+
+    /// Above the breathing band once a breath is modelled: it follows the force's rate.
+    fn judged_in(&self) -> Region {
+        Region::AboveBreathing
     }
 
     fn rivals(&self) -> &'static [&'static str] {

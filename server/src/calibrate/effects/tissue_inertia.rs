@@ -3,7 +3,7 @@
 //! (`torso.moving_mass`).
 
 use super::linear::*;
-use super::{Base, Effect, Parameter, Params, Readjust, ReportContext, Signature, number};
+use super::{Base, Effect, Parameter, Params, Readjust, Region, ReportContext, Signature, number};
 use crate::calibrate::features::Series;
 use crate::calibrate::replay::{Model, Setup};
 
@@ -15,6 +15,11 @@ pub struct TissueInertia;
 impl Effect for TissueInertia {
     fn name(&self) -> &'static str {
         NAME
+    }
+
+    /// Above the breathing band once a breath is modelled: its force follows the probe's acceleration.
+    fn judged_in(&self) -> Region {
+        Region::AboveBreathing
     }
 
     fn signature(&self, series: &[Series], train: &[bool], base: Base) -> Option<Signature> {
