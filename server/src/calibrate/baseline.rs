@@ -139,6 +139,7 @@ pub fn fit(setup: &Setup, dataset: &Dataset, split: &Split) -> Baseline {
     heights_from_onsets(dataset, &mut start);
     let global = Free {
         physics: true,
+        stiffness: true,
         offset: true,
         geometry: Geometry::Fixed,
         above_hz: None,
@@ -197,6 +198,7 @@ pub fn surface_elsewhere(
     }
     let geometry_only = Free {
         physics: false,
+        stiffness: false,
         offset: false,
         geometry: Geometry::Undetermined,
         above_hz: None,

@@ -51,6 +51,10 @@ pub struct FitDiagnostics {
 pub struct Free {
     /// Stiffness, damping and the effects' parameters.
     pub physics: bool,
+    /// With `physics`, the baseline's stiffness too (held where the whole put it when a
+    /// candidate is refitted above the breathing band: a force proportional to the
+    /// indentation is set by holds and slow presses, below the band).
+    pub stiffness: bool,
     /// The global surface offset (off once the sites have their own heights).
     pub offset: bool,
     /// The per-site surface.
@@ -80,6 +84,7 @@ impl Free {
     /// contact onset stay as measured, relative to the offset).
     pub const PER_SITE: Self = Self {
         physics: true,
+        stiffness: true,
         offset: true,
         geometry: Geometry::Training,
         above_hz: None,
@@ -130,7 +135,9 @@ fn pack(
 ) -> Packed {
     let mut p = Packed::default();
     if free.physics {
-        p.global("baseline.stiffness", model.stiffness, (50.0, 30_000.0, 5.0));
+        if free.stiffness {
+            p.global("baseline.stiffness", model.stiffness, (50.0, 30_000.0, 5.0));
+        }
         p.global("baseline.damping", model.damping, (0.1, 500.0, 0.25));
         // With every site's height free, a global offset would be redundant.
         let anchored = free.geometry == Geometry::Fixed
