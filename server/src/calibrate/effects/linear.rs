@@ -83,12 +83,6 @@ pub(super) fn fit_scored(
 ) -> (f64, Vec<f64>, Vec<Vec<f64>>, f64) {
     let level: Vec<Vec<f64>> = series.iter().map(|s| level_column(s, base)).collect();
     let targets: Vec<Vec<f64>> = series.iter().map(|s| s.residual.clone()).collect();
-    // What the fit sees: the whole, or the band above `fit_above_hz`.
-    let seen = |s: &Series, x: &[f64]| match base.fit_above_hz {
-        Some(hz) => high_pass(x, s.dt, hz),
-        None => x.to_vec(),
-    };
-    let fit_targets: Vec<Vec<f64>> = series.iter().map(|s| seen(s, &s.residual)).collect();
     let mut best: Option<(f64, Solved)> = None;
     for &g in grid {
         let cols: Vec<Vec<Vec<f64>>> = series
@@ -100,16 +94,7 @@ pub(super) fn fit_scored(
             })
             .collect();
         let bound = damping.then(|| (cols[0].len() - 1, base.c));
-        let solved = if base.fit_above_hz.is_some() {
-            let fit_cols: Vec<Vec<Vec<f64>>> = series
-                .iter()
-                .zip(&cols)
-                .map(|(s, c)| c.iter().map(|x| seen(s, x)).collect())
-                .collect();
-            solve((&fit_targets, &fit_cols), &cols, &level, train, bound)
-        } else {
-            solve((&targets, &cols), &cols, &level, train, bound)
-        };
+        let solved = solve_seen(series, base, (&targets, &cols), &level, train, bound);
         if best.as_ref().is_none_or(|b| solved.sse < b.1.sse) {
             best = Some((g, solved));
         }
@@ -146,6 +131,33 @@ struct Solved {
     beta: Vec<f64>,
     /// Prediction of every series' target.
     predicted: Vec<Vec<f64>>,
+}
+
+/// [`solve`] as the fit sees the series: on the whole, or with the targets and every
+/// column high-passed above [`Base::fit_above_hz`] (the prediction stays `cols·β`).
+fn solve_seen(
+    series: &[Series],
+    base: Base,
+    (targets, cols): (&[Vec<f64>], &[Vec<Vec<f64>>]),
+    level: &[Vec<f64>],
+    train: &[bool],
+    damping: Option<(usize, f64)>,
+) -> Solved {
+    let Some(hz) = base.fit_above_hz else {
+        return solve((targets, cols), cols, level, train, damping);
+    };
+    let seen = |s: &Series, x: &[f64]| high_pass(x, s.dt, hz);
+    let fit_targets: Vec<Vec<f64>> = series
+        .iter()
+        .zip(targets)
+        .map(|(s, y)| seen(s, y))
+        .collect();
+    let fit_cols: Vec<Vec<Vec<f64>>> = series
+        .iter()
+        .zip(cols)
+        .map(|(s, c)| c.iter().map(|x| seen(s, x)).collect())
+        .collect();
+    solve((&fit_targets, &fit_cols), cols, level, train, damping)
 }
 
 /// Least squares of `targets ≈ fit_cols·β + level·a_k` on the training series, `a_k`
@@ -330,23 +342,7 @@ pub(super) fn fit_sensor_stage(
             .map(|(s, l)| s.residual.iter().zip(l).map(|(r, l)| r - l).collect())
             .collect();
         let bound = Some((cols[0].len() - 1, base.c));
-        let solved = match base.fit_above_hz {
-            Some(hz) => {
-                let seen = |s: &Series, x: &[f64]| high_pass(x, s.dt, hz);
-                let fit_targets: Vec<Vec<f64>> = series
-                    .iter()
-                    .zip(&targets)
-                    .map(|(s, y)| seen(s, y))
-                    .collect();
-                let fit_cols: Vec<Vec<Vec<f64>>> = series
-                    .iter()
-                    .zip(&cols)
-                    .map(|(s, c)| c.iter().map(|x| seen(s, x)).collect())
-                    .collect();
-                solve((&fit_targets, &fit_cols), &cols, &level, train, bound)
-            }
-            None => solve((&targets, &cols), &cols, &level, train, bound),
-        };
+        let solved = solve_seen(series, base, (&targets, &cols), &level, train, bound);
         if best.as_ref().is_none_or(|b| solved.sse < b.1.sse) {
             best = Some((g, solved, shapes));
         }
