@@ -5,7 +5,7 @@
 //! breathing law's misfit lives. Selection gates a candidate on its region's figures
 //! and requires the whole not to get worse (`select`).
 
-use super::effects::{Region, breathing_motion};
+use super::effects::{FASTEST_BREATHING_HZ, Region};
 use super::features::Series;
 use super::high_pass::high_pass;
 
@@ -13,7 +13,7 @@ use super::high_pass::high_pass;
 /// common breathing rate the catalogue considers (1.62 Hz), above the second harmonic
 /// of the fastest breath a recording may have (0.54 Hz + 15 %: 1.24 Hz). Frozen before
 /// it was tried on any dataset.
-pub const ABOVE_BREATHING_HZ: f64 = 3.0 * breathing_motion::FASTEST_HZ;
+pub const ABOVE_BREATHING_HZ: f64 = 3.0 * FASTEST_BREATHING_HZ;
 
 /// Free air needed in the train and in the validation recordings for an effect to be
 /// weighed there \[s\].

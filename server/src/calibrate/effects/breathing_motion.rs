@@ -18,10 +18,11 @@ use crate::sim::torso::{rise_profile, track_at};
 
 const NAME: &str = "breathing_motion";
 
-/// The slowest and the fastest common breathing rate the signature considers \[Hz\]
-/// (each recording's own rate within ±15 % of the common one).
-pub const SLOWEST_HZ: f64 = 0.12;
-/// See [`SLOWEST_HZ`].
+/// The slowest common breathing rate the signature considers \[Hz\] (each recording's
+/// own rate within ±15 % of the common one).
+const SLOWEST_HZ: f64 = 0.12;
+/// The fastest common breathing rate the signature considers \[Hz\] (each recording's
+/// own rate within ±15 % of the common one).
 pub const FASTEST_HZ: f64 = 0.54;
 
 /// The reported `amplitude_m` is the oscillation's amplitude about its mean, as a

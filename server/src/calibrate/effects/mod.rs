@@ -27,7 +27,7 @@
 //! simulator lacks one.
 
 mod bias_drift;
-pub mod breathing_motion;
+mod breathing_motion;
 mod depth_dependent_damping;
 mod linear;
 mod nonlinear_stiffness;
@@ -39,6 +39,7 @@ mod sliding_friction;
 mod tissue_inertia;
 mod viscoelastic_relaxation;
 
+pub use breathing_motion::FASTEST_HZ as FASTEST_BREATHING_HZ;
 pub use linear::{readjust_columns, readjusted};
 
 use super::replay::{Model, Setup};
