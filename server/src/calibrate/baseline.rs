@@ -7,6 +7,7 @@ use crate::recordings::Dataset;
 use crate::sim::torso::{ProbeFace, Torso, TorsoParams};
 
 use super::CalibrateError;
+use super::fit::Effort;
 use super::geometry::{self, Source};
 use super::model::{FitDiagnostics, Free, Geometry, fit_model};
 use super::onset;
@@ -151,7 +152,11 @@ pub fn fit(setup: &Setup, dataset: &Dataset, split: &Split) -> Baseline {
         start,
         &[],
         global,
-        GLOBAL_ITERATIONS,
+        // Only a start for the per-site stage.
+        Effort {
+            iterations: GLOBAL_ITERATIONS,
+            intervals: false,
+        },
     );
     let (model, diagnostics) = fit_model(
         setup,
@@ -160,7 +165,10 @@ pub fn fit(setup: &Setup, dataset: &Dataset, split: &Split) -> Baseline {
         model,
         &[],
         Free::PER_SITE,
-        SITE_ITERATIONS,
+        Effort {
+            iterations: SITE_ITERATIONS,
+            intervals: true,
+        },
     );
     let (model, surface_from_heldout) = surface_elsewhere(setup, dataset, split, model);
     Baseline {
@@ -210,7 +218,11 @@ pub fn surface_elsewhere(
         model,
         &[],
         geometry_only,
-        SITE_ITERATIONS,
+        // Nuisances: their intervals are not reported.
+        Effort {
+            iterations: SITE_ITERATIONS,
+            intervals: false,
+        },
     );
     let mut sites: Vec<String> = model
         .surface

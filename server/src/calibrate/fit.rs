@@ -71,6 +71,16 @@ pub struct FitResult {
     pub at_bound: Vec<bool>,
 }
 
+/// How far a fit goes.
+#[derive(Debug, Clone, Copy)]
+pub struct Effort {
+    /// LM iterations at most.
+    pub iterations: usize,
+    /// Whether the result needs intervals, hence a finite-difference Jacobian at the
+    /// final point: a fit whose point only starts another skips its replays.
+    pub intervals: bool,
+}
+
 /// Residual blocks: `f(x, blocks)` returns the residuals of the listed blocks, in order.
 /// Called from several threads at once (Jacobian columns are evaluated in parallel).
 pub type BlockResiduals<'a> = dyn Fn(&[f64], &[usize]) -> Vec<Vec<f64>> + Sync + 'a;
@@ -92,17 +102,19 @@ const LAMBDA_MIN: f64 = 1e-9;
 /// + breathing seed 3: costs within 3.6–3.9 % of each other from λ 1.6·10⁻⁶ to 6.6·10⁻³).
 const LAMBDA_RETRY: f64 = 1e-2;
 
-/// Minimise `Σ r(x)²` from `x0` within `bounds` with at most `max_iterations` LM steps;
-/// the residuals form `blocks` blocks and parameter `j` moves only the blocks in
-/// `touches[j]` (empty: all of them).
+/// Minimise `Σ r(x)²` from `x0` within `bounds` with at most `effort.iterations` LM
+/// steps; the residuals form `blocks` blocks and parameter `j` moves only the blocks in
+/// `touches[j]` (empty: all of them). Without `effort.intervals` the half-widths and
+/// correlations are NaN.
 pub fn levenberg_marquardt_blocks(
     residuals: &BlockResiduals<'_>,
     blocks: usize,
     touches: &[Vec<usize>],
     x0: &[f64],
     bounds: &[Bound],
-    max_iterations: usize,
+    effort: Effort,
 ) -> FitResult {
+    let max_iterations = effort.iterations;
     let n = x0.len();
     let all: Vec<usize> = (0..blocks).collect();
     let clamp = |x: &mut Vec<f64>| {
@@ -229,17 +241,22 @@ pub fn levenberg_marquardt_blocks(
             convergence = Convergence::IterationLimit;
         }
     }
-    if !fresh {
+    if !fresh && effort.intervals {
         // The intervals need the Jacobian at the final point.
         jacobian(residuals, &x, &r, &offsets, touches, &all, bounds, &mut jac);
         evaluations += n;
+        fresh = true;
     }
     let at_bound: Vec<bool> = x
         .iter()
         .zip(bounds)
         .map(|(v, b)| *v <= b.lo || *v >= b.hi)
         .collect();
-    let (half_width_95, correlation) = uncertainty(&jac, &r, cost, &at_bound);
+    let (half_width_95, correlation) = if fresh {
+        uncertainty(&jac, &r, cost, &at_bound)
+    } else {
+        (vec![f64::NAN; n], vec![f64::NAN; n * n])
+    };
     FitResult {
         x,
         cost,
@@ -259,7 +276,11 @@ pub fn levenberg_marquardt(
     max_iterations: usize,
 ) -> FitResult {
     let blocks = |x: &[f64], _: &[usize]| vec![residuals(x)];
-    levenberg_marquardt_blocks(&blocks, 1, &[], x0, bounds, max_iterations)
+    let effort = Effort {
+        iterations: max_iterations,
+        intervals: true,
+    };
+    levenberg_marquardt_blocks(&blocks, 1, &[], x0, bounds, effort)
 }
 
 fn sum_squares(r: &[Vec<f64>]) -> f64 {
@@ -584,7 +605,17 @@ mod tests {
             step: 1e-6,
         };
         let touches = vec![vec![], vec![0], vec![1], vec![2]];
-        let fit = levenberg_marquardt_blocks(&res, 3, &touches, &[0.0; 4], &[b; 4], 20);
+        let fit = levenberg_marquardt_blocks(
+            &res,
+            3,
+            &touches,
+            &[0.0; 4],
+            &[b; 4],
+            Effort {
+                iterations: 20,
+                intervals: true,
+            },
+        );
         let truth = [2.0, 0.3, -0.2, 0.7];
         for (j, t) in truth.iter().enumerate() {
             assert!(

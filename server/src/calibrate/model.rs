@@ -7,7 +7,7 @@ use crate::recordings::Dataset;
 
 use super::decision::Accepted;
 use super::effects;
-use super::fit::{Bound, Convergence, levenberg_marquardt_blocks};
+use super::fit::{Bound, Convergence, Effort, levenberg_marquardt_blocks};
 use super::geometry::{PATH_PRIOR, PRIOR_FORCE_N, Source};
 use super::high_pass::high_pass;
 use super::replay::{Model, ReplayCache, Setup};
@@ -258,7 +258,7 @@ pub fn fit_model(
     model: Model,
     effects: &[&str],
     free: Free,
-    iterations: usize,
+    effort: Effort,
 ) -> (Model, FitDiagnostics) {
     let sites: Vec<String> = fit_on
         .iter()
@@ -334,7 +334,7 @@ pub fn fit_model(
         &touches,
         &packed.x,
         &packed.bounds,
-        iterations,
+        effort,
     );
     tracing::debug!(
         "fit of {} parameters on {} recordings: {:?}, {} evaluations, {:.1} s",

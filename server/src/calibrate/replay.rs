@@ -409,6 +409,8 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
     let mut sim_rise = Vec::with_capacity(if rise_law.is_some() { steps } else { 0 });
     let half = [params.size[0] / 2.0, params.size[1] / 2.0];
     let mut at_rest = !breathing;
+    let started = std::time::Instant::now();
+    let (mut stepped, mut iterations) = (0usize, 0usize);
     for k in 0..steps {
         let t = t0 + k as f64 * REPLAY_DT;
         let mut p = interp3(&recording.t, &recording.p, t);
@@ -428,6 +430,8 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
         } else {
             let probe = ProbeKinematics::upright(p, v);
             let w = torso.step(REPLAY_DT, Some(&probe));
+            stepped += 1;
+            iterations += torso.last_iterations();
             if !breathing {
                 at_rest = !w.in_contact()
                     && torso.velocities().iter().all(|v| v.abs() < 1e-7)
@@ -443,6 +447,11 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
         sim_f.push(f[2]);
         sim_contact.push(contact);
     }
+    tracing::trace!(
+        "replay {index}: {stepped} of {steps} steps, {:.1} CG iterations a step, {:.1} µs a step",
+        iterations as f64 / stepped.max(1) as f64,
+        started.elapsed().as_secs_f64() * 1e6 / stepped.max(1) as f64
+    );
     BodyReplay {
         t: sim_t,
         f: sim_f,

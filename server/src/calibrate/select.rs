@@ -10,6 +10,7 @@ use crate::recordings::Dataset;
 
 use super::effects;
 use super::features::{Series, rmse};
+use super::fit::Effort;
 use super::high_pass::high_pass;
 use super::model::{FitDiagnostics, Free, Geometry, apply_effects, fit_model};
 use super::replay::{self, Model, Setup, replay_all};
@@ -452,7 +453,10 @@ fn refit_in_simulator(
         model,
         names,
         free,
-        EFFECT_ITERATIONS,
+        Effort {
+            iterations: EFFECT_ITERATIONS,
+            intervals: true,
+        },
     );
     let (mut model, _) = baseline::surface_elsewhere(setup, dataset, split, refitted);
     let all: Vec<usize> = (0..dataset.recordings.len()).collect();
