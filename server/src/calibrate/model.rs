@@ -31,6 +31,10 @@ pub struct Estimate {
     /// The fit stopped at a bound of the parameter's range: the value is the model's
     /// limit, not an estimate.
     pub at_bound: bool,
+    /// Held at this value by the last refit (a candidate refitted above the breathing
+    /// band moves only its own parameters and the damping): value and interval are
+    /// those of the fit that last moved it.
+    pub held: bool,
 }
 
 /// What a fit says about itself.
@@ -44,6 +48,32 @@ pub struct FitDiagnostics {
     pub convergence: Convergence,
     /// Replays used (whole or partial).
     pub evaluations: usize,
+}
+
+impl FitDiagnostics {
+    /// These diagnostics completed with `earlier`'s estimates of the parameters this fit
+    /// held (see [`Estimate::held`]), and `earlier`'s correlations between two of them.
+    pub fn with_held(mut self, earlier: &FitDiagnostics) -> Self {
+        let moved = |name: &str| self.estimates.iter().any(|e| e.name == name);
+        let held: Vec<Estimate> = earlier
+            .estimates
+            .iter()
+            .filter(|e| !moved(&e.name))
+            .map(|e| Estimate {
+                held: true,
+                ..e.clone()
+            })
+            .collect();
+        let correlated: Vec<(String, String, f64)> = earlier
+            .correlated
+            .iter()
+            .filter(|(a, b, _)| !moved(a) && !moved(b))
+            .cloned()
+            .collect();
+        self.estimates.extend(held);
+        self.correlated.extend(correlated);
+        self
+    }
 }
 
 /// Which parts of the model a fit moves.
@@ -407,6 +437,7 @@ pub fn fit_model(
                 value,
                 interval,
                 at_bound,
+                held: false,
             }
         })
         .collect();

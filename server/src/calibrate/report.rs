@@ -135,7 +135,7 @@ fn diagnostics_json(d: &FitDiagnostics) -> serde_json::Value {
         "evaluations": d.evaluations,
         "estimates": d.estimates.iter().map(|e| serde_json::json!({
             "name": e.name, "value": e.value, "interval_95": e.interval,
-            "at_bound": e.at_bound,
+            "at_bound": e.at_bound, "held_in_last_refit": e.held,
         })).collect::<Vec<_>>(),
         "correlated_above_0_95": d.correlated.iter().map(|(a, b, r)| serde_json::json!({
             "a": a, "b": b, "correlation": r,
@@ -504,8 +504,16 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
             } else {
                 let _ = writeln!(
                     s,
-                    "| {} | {:.4} | {:.4} … {:.4} |",
-                    e.name, e.value, e.interval[0], e.interval[1]
+                    "| {} | {:.4} | {:.4} … {:.4}{} |",
+                    e.name,
+                    e.value,
+                    e.interval[0],
+                    e.interval[1],
+                    if e.held {
+                        " (held by the last refit: the fit that last moved it)"
+                    } else {
+                        ""
+                    }
                 );
             }
         }

@@ -198,7 +198,9 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                         k_per_unit,
                     )
                 };
-                let (model, diagnostics, predictions) = match region
+                // `held`: the refit kept the parameters other than the candidate's and
+                // the damping where they were.
+                let ((model, diagnostics, predictions), held) = match region
                     .as_ref()
                     .and_then(Weighing::above_hz)
                 {
@@ -233,9 +235,9 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                             "{} refitted above the band: validation {a:.4} N; as a whole: {w:.4} N",
                             effect.name
                         );
-                        if w < a { whole } else { above }
+                        if w < a { (whole, false) } else { (above, true) }
                     }
-                    None => refit(&names, Free::PER_SITE),
+                    None => (refit(&names, Free::PER_SITE), false),
                 };
                 let before = rmse_against(
                     dataset,
@@ -301,6 +303,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                     replaced,
                     model,
                     diagnostics,
+                    held,
                     predictions,
                     before,
                     after,
@@ -364,7 +367,11 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
             );
             failures.named(trial.effect.name);
             calibrated = trial.model;
-            calibrated_fit = trial.diagnostics;
+            calibrated_fit = if trial.held {
+                trial.diagnostics.with_held(&calibrated_fit)
+            } else {
+                trial.diagnostics
+            };
             current = series_of(dataset, setup, &trial.predictions);
             current_predictions = trial.predictions;
             accepted.retain(|a| Some(a.name) != trial.replaced);
@@ -580,6 +587,7 @@ fn try_richer(
     if kept {
         trial.model = model;
         trial.diagnostics = diagnostics;
+        trial.held = false;
         trial.predictions = predictions;
         trial.after = after;
     }
@@ -614,6 +622,9 @@ struct Trial {
     replaced: Option<&'static str>,
     model: Model,
     diagnostics: FitDiagnostics,
+    /// The refit held the parameters other than the candidate's and the damping (see
+    /// [`FitDiagnostics::with_held`]).
+    held: bool,
     predictions: Vec<replay::Prediction>,
     /// Validation RMSE before and after, in the effect's channel \[N\].
     before: f64,
