@@ -469,3 +469,69 @@ pub fn apply_effects(model: &mut Model, accepted: &[Accepted], setup: &Setup) {
             .apply(&a.params, model, setup);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn estimate(name: &str, value: f64) -> Estimate {
+        Estimate {
+            name: name.into(),
+            value,
+            interval: [value - 1.0, value + 1.0],
+            at_bound: false,
+            held: false,
+        }
+    }
+
+    fn diagnostics(estimates: Vec<Estimate>, correlated: &[(&str, &str)]) -> FitDiagnostics {
+        FitDiagnostics {
+            estimates,
+            correlated: correlated
+                .iter()
+                .map(|(a, b)| (a.to_string(), b.to_string(), 0.99))
+                .collect(),
+            convergence: Convergence::Converged,
+            evaluations: 1,
+        }
+    }
+
+    #[test]
+    fn a_refit_that_held_parameters_keeps_their_earlier_estimates() {
+        let earlier = diagnostics(
+            vec![
+                estimate("baseline.stiffness", 600.0),
+                estimate("baseline.damping", 20.0),
+                estimate("breathing_motion.amplitude_m", 3.0),
+            ],
+            &[
+                ("baseline.stiffness", "breathing_motion.amplitude_m"),
+                ("baseline.stiffness", "baseline.damping"),
+            ],
+        );
+        let refit = diagnostics(
+            vec![
+                estimate("baseline.damping", 18.0),
+                estimate("depth_dependent_damping.ratio_at_10mm", 3.5),
+            ],
+            &[],
+        );
+        let merged = refit.with_held(&earlier);
+        let find = |name: &str| merged.estimates.iter().find(|e| e.name == name).unwrap();
+        // What the refit moved is its own; what it held comes from before, marked.
+        assert_eq!(
+            (
+                find("baseline.damping").value,
+                find("baseline.damping").held
+            ),
+            (18.0, false)
+        );
+        assert!(!find("depth_dependent_damping.ratio_at_10mm").held);
+        assert_eq!(find("baseline.stiffness").value, 600.0);
+        assert!(find("baseline.stiffness").held && find("breathing_motion.amplitude_m").held);
+        assert_eq!(merged.estimates.len(), 4);
+        // A correlation with a moved parameter is stale; one between two held stays.
+        assert_eq!(merged.correlated.len(), 1);
+        assert_eq!(merged.correlated[0].1, "breathing_motion.amplitude_m");
+    }
+}

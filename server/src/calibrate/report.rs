@@ -510,7 +510,7 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
                     e.interval[0],
                     e.interval[1],
                     if e.held {
-                        " (held by the last refit: the fit that last moved it)"
+                        " (held in the last refit: value and interval of the fit before)"
                     } else {
                         ""
                     }
