@@ -264,13 +264,13 @@ fn round_to_u8(x: f32) -> u8 {
     t + u8::from(x - f32::from(t) >= 0.5)
 }
 
-/// The outputs `from..to` of a row of `n` that tap `j` of a centred kernel of `taps`
-/// reaches without leaving the row.
-fn tap_range(j: usize, taps: usize, n: usize) -> (usize, usize) {
+/// For tap `j` of a centred kernel of `taps` over a row of `n`: the outputs `from..to`
+/// it reaches without leaving the row, and the offset from an output to its input.
+fn tap_range(j: usize, taps: usize, n: usize) -> (usize, usize, i64) {
     let shift = j as i64 - (taps / 2) as i64;
     let from = (-shift).clamp(0, n as i64) as usize;
     let to = (n as i64 - shift).clamp(0, n as i64) as usize;
-    (from, to.max(from))
+    (from, to.max(from), shift)
 }
 
 /// A 1-D Gaussian kernel of standard deviation `sigma` samples (`[1]` when tiny).
@@ -492,11 +492,10 @@ impl Imager {
             .zip(self.blurred.chunks_exact_mut(lines))
         {
             for (j, &w) in kl.iter().enumerate() {
-                let (from, to) = tap_range(j, kl.len(), lines);
+                let (from, to, shift) = tap_range(j, kl.len(), lines);
                 if from == to {
                     continue; // a kernel wider than the row
                 }
-                let shift = j as i64 - (kl.len() / 2) as i64;
                 let src = &src[(from as i64 + shift) as usize..(to as i64 + shift) as usize];
                 for (d, &x) in dst[from..to].iter_mut().zip(src) {
                     *d += w * x;
