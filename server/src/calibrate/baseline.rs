@@ -37,6 +37,7 @@ pub fn setup(dataset: &Dataset) -> Result<Setup, CalibrateError> {
             .map_err(|e| CalibrateError::Torso(e.to_string()))?;
     }
     torso.center_xy = meta.torso_center_xy;
+    let damping_time = torso.damping / torso.stiffness;
     Ok(Setup {
         torso,
         nominal_surface_z: meta.nominal_surface_z,
@@ -47,7 +48,11 @@ pub fn setup(dataset: &Dataset) -> Result<Setup, CalibrateError> {
             .collect(),
         recording_sites: meta.recordings.iter().map(|e| e.site.clone()).collect(),
         session: SessionClock::of(dataset),
-        approaches: dataset.recordings.iter().map(onset::approaches).collect(),
+        approaches: dataset
+            .recordings
+            .iter()
+            .map(|rec| onset::approaches(rec, damping_time))
+            .collect(),
     })
 }
 
@@ -77,14 +82,23 @@ fn initial_stiffness(dataset: &Dataset, train: &[usize], setup: &Setup) -> f64 {
 /// [`onset`]), relative to the median onset of all recordings, which becomes the global
 /// surface offset's starting value (it stays fitted: the particle torso's own contact
 /// may sit a little off the data's).
-fn heights_from_onsets(dataset: &Dataset, model: &mut Model) {
-    let onsets: Vec<Option<f64>> = dataset.recordings.iter().map(onset::surface_z).collect();
+/// The onsets are read with the model's own damping time (`damping / stiffness`, see
+/// [`onset::approaches`]). Returns the reference (the median onset) \[m\].
+fn heights_from_onsets(dataset: &Dataset, model: &mut Model) -> Option<f64> {
+    let damping_time = model.damping / model.stiffness;
+    // Each recording's median onset and where the probe was then.
+    let points: Vec<Option<(f64, [f64; 2])>> = dataset
+        .recordings
+        .iter()
+        .map(|rec| onset::median_onset(rec, damping_time))
+        .collect();
+    let onsets: Vec<Option<f64>> = points.iter().map(|p| p.map(|(z, _)| z)).collect();
     for (entry, z) in dataset.meta.recordings.iter().zip(&onsets) {
         tracing::debug!("contact onset of {}: {z:?}", entry.file);
     }
     let mut all: Vec<f64> = onsets.iter().flatten().copied().collect();
     if all.is_empty() {
-        return;
+        return None;
     }
     all.sort_by(f64::total_cmp);
     let reference = all[all.len() / 2];
@@ -111,8 +125,32 @@ fn heights_from_onsets(dataset: &Dataset, model: &mut Model) {
         {
             path.height_m = z - reference - site.height_m;
             path.height_source = Source::Onset;
+            if let Some((_, xy)) = points[path.recording] {
+                path.anchor_m = (xy[0] - path.centre[0]) * path.along[0]
+                    + (xy[1] - path.centre[1]) * path.along[1];
+            }
         }
     }
+    // A later segment without an onset of its own (it began in contact, after the
+    // logger's pause) stands on its file's first segment's skin.
+    for k in 0..model.paths.len() {
+        let path = &model.paths[k];
+        if path.height_source == Source::Onset {
+            continue;
+        }
+        let Some(leader) = path
+            .follows
+            .and_then(|l| model.paths.iter().find(|p| p.recording == l))
+        else {
+            continue;
+        };
+        let (height, anchor, source) = (leader.height_m, leader.anchor_m, leader.height_source);
+        let path = &mut model.paths[k];
+        path.height_m = height;
+        path.anchor_m = anchor;
+        path.height_source = source;
+    }
+    Some(reference)
 }
 
 /// The fitted baseline and what its fit says about itself.
@@ -137,7 +175,7 @@ pub fn fit(setup: &Setup, dataset: &Dataset, split: &Split) -> Baseline {
     start.friction = setup.torso.friction;
     start.surface = geometry::sites(dataset);
     start.paths = geometry::paths(dataset);
-    heights_from_onsets(dataset, &mut start);
+    let first_reference = heights_from_onsets(dataset, &mut start);
     let global = Free {
         physics: true,
         stiffness: true,
@@ -158,6 +196,15 @@ pub fn fit(setup: &Setup, dataset: &Dataset, split: &Split) -> Baseline {
             intervals: false,
         },
     );
+    // The onsets again with the damping time the global stage found (the first read
+    // used the configured torso's), the fitted offset kept where it stood relative to
+    // them.
+    let mut model = model;
+    let fitted_offset = model.surface_offset;
+    if let (Some(first), Some(again)) = (first_reference, heights_from_onsets(dataset, &mut model))
+    {
+        model.surface_offset = fitted_offset + (again - first);
+    }
     let (model, diagnostics) = fit_model(
         setup,
         dataset,

@@ -88,6 +88,17 @@ pub struct PathSurface {
     /// Where the height correction came from.
     #[serde(default)]
     pub height_source: Source,
+    /// Where along the path `height_m` holds \[m from `centre`\]: the contact onset's
+    /// point when the height came from it (a slide's onset is where it began, centimetres
+    /// from its centre), else 0. Slope and curvature then bend the path about that
+    /// point, and the skin at the onset stays where the onset put it.
+    #[serde(default)]
+    pub anchor_m: f64,
+    /// The earlier segment of the same file whose path this one is (a logger's pause
+    /// cut the file; the skin under it did not change): its slope, curvature and, where
+    /// this segment has no onset of its own, its height hold here too.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub follows: Option<usize>,
     /// Unit direction in world xy the probe moves along.
     pub along: [f64; 2],
     /// Extent of the contact points along `along` \[m\].
@@ -128,7 +139,11 @@ pub fn shift(
     };
     let s = (xy[0] - path.centre[0]) * path.along[0] + (xy[1] - path.centre[1]) * path.along[1];
     let ds = v[0] * path.along[0] + v[1] * path.along[1];
-    let z = site.height_m + path.height_m + path.slope * s + 0.5 * path.curvature_per_m * s * s;
+    let a = path.anchor_m;
+    let z = site.height_m
+        + path.height_m
+        + path.slope * (s - a)
+        + 0.5 * path.curvature_per_m * (s * s - a * a);
     let dz = (path.slope + path.curvature_per_m * s) * ds;
     (z, dz)
 }
@@ -201,16 +216,32 @@ pub fn principal_axis(points: &[[f64; 2]]) -> ([f64; 2], [f64; 2], f64) {
 }
 
 /// A path for every recording (direction: the principal axis of its contact points),
-/// flat to begin with.
+/// flat to begin with. The segments of one file share one path: its axis from all their
+/// contact points, the later ones following the first (`follows`).
 pub fn paths(dataset: &Dataset) -> Vec<PathSurface> {
-    (0..dataset.recordings.len())
+    let file_of = |i: usize| {
+        let entry = &dataset.meta.recordings[i];
+        entry
+            .segment
+            .as_ref()
+            .map_or(entry.file.as_str(), |s| s.source.as_str())
+    };
+    let n = dataset.recordings.len();
+    (0..n)
         .map(|i| {
-            let (centre, along, extent_m) = principal_axis(&contact_points(dataset, i));
+            let same_file: Vec<usize> = (0..n).filter(|&j| file_of(j) == file_of(i)).collect();
+            let points: Vec<[f64; 2]> = same_file
+                .iter()
+                .flat_map(|&j| contact_points(dataset, j))
+                .collect();
+            let (centre, along, extent_m) = principal_axis(&points);
             PathSurface {
                 recording: i,
                 centre,
                 height_m: 0.0,
                 height_source: Source::Unfitted,
+                anchor_m: 0.0,
+                follows: same_file.first().copied().filter(|&first| first != i),
                 along,
                 extent_m,
                 slope: 0.0,
@@ -219,6 +250,11 @@ pub fn paths(dataset: &Dataset) -> Vec<PathSurface> {
             }
         })
         .collect()
+}
+
+/// Whether `path` is recording `leader`'s path or follows it.
+pub fn belongs_to(path: &PathSurface, leader: usize) -> bool {
+    path.recording == leader || path.follows == Some(leader)
 }
 
 #[cfg(test)]
@@ -238,6 +274,8 @@ mod tests {
             centre: [0.1, 0.0],
             height_m: 0.0,
             height_source: Source::Training,
+            anchor_m: 0.0,
+            follows: None,
             along: [1.0, 0.0],
             extent_m: 0.06,
             slope: 0.05,
@@ -249,5 +287,13 @@ mod tests {
         assert!((z - (0.002 + 0.001 - 0.0008)).abs() < 1e-12, "{z}");
         assert!((dz - (0.05 - 0.08) * 0.01).abs() < 1e-12, "{dz}");
         assert_eq!(shift(Some(&site), None, [0.3, 0.3], [1.0; 3]), (0.002, 0.0));
+        // Anchored 1 cm before the centre (an onset there), the skin there is site +
+        // path height, whatever the slope and curvature.
+        let anchored = PathSurface {
+            anchor_m: -0.01,
+            ..path
+        };
+        let (z, _) = shift(Some(&site), Some(&anchored), [0.09, 0.0], [0.0; 3]);
+        assert!((z - 0.002).abs() < 1e-12, "{z}");
     }
 }

@@ -8,7 +8,7 @@ use crate::recordings::Dataset;
 use super::decision::Accepted;
 use super::effects;
 use super::fit::{Bound, Convergence, Effort, levenberg_marquardt_blocks};
-use super::geometry::{PATH_PRIOR, PRIOR_FORCE_N, Source};
+use super::geometry::{PATH_PRIOR, PRIOR_FORCE_N, Source, belongs_to};
 use super::high_pass::high_pass;
 use super::replay::{Model, ReplayCache, Setup};
 
@@ -128,8 +128,8 @@ enum Touch {
     All,
     /// The recordings made at a site.
     Site(String),
-    /// One recording.
-    Recording(usize),
+    /// Some recordings (a path's: the segments of one file).
+    Recordings(Vec<usize>),
 }
 
 #[derive(Default)]
@@ -200,8 +200,16 @@ fn pack(
                 );
             }
         }
-        for path in &model.paths {
-            let touch = Touch::Recording(path.recording);
+        // A later segment's path is its file's first segment's (`follows`).
+        for path in model.paths.iter().filter(|p| p.follows.is_none()) {
+            let touch = Touch::Recordings(
+                model
+                    .paths
+                    .iter()
+                    .filter(|q| belongs_to(q, path.recording))
+                    .map(|q| q.recording)
+                    .collect(),
+            );
             let name = |key: &str| format!("path.{}.{key}", path.recording);
             if fit_on.contains(&path.recording) && fits(path.source) {
                 if path.has_slope() {
@@ -256,7 +264,7 @@ fn unpack(template: &Model, names: &[String], log: &[bool], x: &[f64]) -> Model 
             ("path", key) => {
                 let (recording, field) = key.split_once('.').expect("path.<recording>.<field>");
                 let recording: usize = recording.parse().expect("recording index");
-                if let Some(path) = m.paths.iter_mut().find(|p| p.recording == recording) {
+                for path in m.paths.iter_mut().filter(|p| belongs_to(p, recording)) {
                     match field {
                         "height_m" => path.height_m = v,
                         "slope" => path.slope = v,
@@ -309,7 +317,9 @@ pub fn fit_model(
         .map(|touch| match touch {
             Touch::All => Vec::new(),
             Touch::Site(site) => (0..fit_on.len()).filter(|&b| &sites[b] == site).collect(),
-            Touch::Recording(i) => (0..fit_on.len()).filter(|&b| fit_on[b] == *i).collect(),
+            Touch::Recordings(list) => (0..fit_on.len())
+                .filter(|&b| list.contains(&fit_on[b]))
+                .collect(),
         })
         .collect();
     let with_prior = free.geometry != Geometry::Fixed;
@@ -346,7 +356,11 @@ pub fn fit_model(
                     let y = channel(&|k| rec.f[k][1] - p.fxy[k][1]);
                     rows.extend(x.into_iter().zip(y).flat_map(|(x, y)| [x, y]));
                 }
-                if with_prior && let Some(path) = candidate.paths.iter().find(|p| p.recording == i)
+                if with_prior
+                    && let Some(path) = candidate
+                        .paths
+                        .iter()
+                        .find(|p| p.recording == i && p.follows.is_none())
                 {
                     // The recording's geometry prior (see `geometry::PATH_PRIOR`).
                     let weight = PRIOR_FORCE_N * (rows.len() as f64).sqrt();
@@ -403,10 +417,10 @@ pub fn fit_model(
         } else if let Some(key) = name.strip_prefix("path.") {
             let (recording, field) = key.split_once('.').expect("path.<recording>.<field>");
             let recording: Option<usize> = recording.parse().ok();
-            if let Some(path) = fitted
+            for path in fitted
                 .paths
                 .iter_mut()
-                .find(|p| Some(p.recording) == recording)
+                .filter(|p| recording.is_some_and(|r| belongs_to(p, r)))
             {
                 if field == "height_m" {
                     path.height_source = source;

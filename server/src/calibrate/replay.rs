@@ -391,6 +391,12 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
         if let Ok(law) = law {
             breath_shift = onset_breath_shift(setup, model, recording, index, &law, &params);
             rise_law = Some(law.clone());
+            // A settling before the recording starts the drive early (see below).
+            let law = if starts_in_contact(setup, model, recording, index, breath_shift) {
+                law.with_lead(SETTLE_S)
+            } else {
+                law
+            };
             let u = law.equilibrium();
             torso.set_state(&u, &vec![0.0; u.len()]);
             torso.add_law(Box::new(law));
@@ -409,6 +415,13 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
     let mut sim_rise = Vec::with_capacity(if rise_law.is_some() { steps } else { 0 });
     let half = [params.size[0] / 2.0, params.size[1] / 2.0];
     let mut at_rest = !breathing;
+    if starts_in_contact(setup, model, recording, index, breath_shift) {
+        // Above the skin even at full inhalation.
+        let from = top + SETTLE_CLEARANCE_M + model.breathing.map_or(0.0, |b| b.1.abs());
+        let start = shifted_start(setup, model, recording, index, breath_shift);
+        settle(&mut torso, start, from);
+        at_rest = false;
+    }
     let started = std::time::Instant::now();
     let (mut stepped, mut iterations) = (0usize, 0usize);
     for k in 0..steps {
@@ -460,6 +473,69 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
         contact: sim_contact,
         rise: sim_rise,
         invalid: false,
+    }
+}
+
+/// How long a replay settles the body before a recording that starts in contact \[s\]:
+/// [`SETTLE_DESCENT_S`] bringing the probe down from above the skin, the rest holding
+/// it there (the replayed torso's damping time is tens of milliseconds).
+pub const SETTLE_S: f64 = 0.8;
+const SETTLE_DESCENT_S: f64 = 0.5;
+/// Height above the torso's top (and above its breath) the settling descent starts from
+/// \[m\].
+const SETTLE_CLEARANCE_M: f64 = 0.002;
+
+/// The probe's first position as the torso sees it (the skin's height there taken off,
+/// as the replay's loop does).
+fn shifted_start(
+    setup: &Setup,
+    model: &Model,
+    recording: &Recording,
+    index: usize,
+    breath_shift: f64,
+) -> [f64; 3] {
+    let surface = surface_of(setup, model, index);
+    let mut p = recording.p[0];
+    let (z, _) = surface([p[0], p[1]], recording.v[0]);
+    p[2] -= z - breath_shift;
+    p
+}
+
+/// Whether `recording` starts with the probe below the model's skin: a real log that
+/// begins mid-scan, or a segment after a gap in the log.
+fn starts_in_contact(
+    setup: &Setup,
+    model: &Model,
+    recording: &Recording,
+    index: usize,
+    breath_shift: f64,
+) -> bool {
+    let top = setup.torso_params(model).top_z();
+    shifted_start(setup, model, recording, index, breath_shift)[2] < top
+}
+
+/// Bring the probe down from `from`, above the skin, to `start` (a raised-cosine move), then hold
+/// it, so a recording that starts in contact starts from a pressed body. Started
+/// undeformed with the probe already millimetres deep, the first steps would push the
+/// skin down in one step: a damping force of tens of newtons (61 N against a measured
+/// 7 N on a segment after a logger's pause). Relaxation states load during the
+/// settling as they would have during a hold; a breathing drive was started
+/// [`SETTLE_S`] early (`Breathing::with_lead`), so the recording's breath is unmoved.
+fn settle(torso: &mut Torso, start: [f64; 3], from: f64) {
+    let steps = (SETTLE_S / REPLAY_DT).round() as usize;
+    let descent = (SETTLE_DESCENT_S / REPLAY_DT).round() as usize;
+    for k in 1..=steps {
+        let s = (k.min(descent) as f64) / descent as f64;
+        let share = (1.0 - (std::f64::consts::PI * s).cos()) / 2.0;
+        let speed = if k < descent {
+            std::f64::consts::PI / 2.0 * (std::f64::consts::PI * s).sin() / SETTLE_DESCENT_S
+        } else {
+            0.0
+        };
+        let z = from + (start[2] - from) * share;
+        let vz = (start[2] - from) * speed;
+        let probe = ProbeKinematics::upright([start[0], start[1], z], [0.0, 0.0, vz]);
+        torso.step(REPLAY_DT, Some(&probe));
     }
 }
 
@@ -690,6 +766,33 @@ mod tests {
         {
             assert!((d - p - r).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn a_recording_that_starts_in_contact_starts_from_a_pressed_body() {
+        // Held 6 mm deep from its first sample (a log that begins mid-scan, a segment
+        // after a logger's pause): the force is the held force from the start.
+        let setup = flat_setup(TorsoParams::default());
+        let model = Model::baseline(1324.17, 17.59, 0.0);
+        let n = 2000;
+        let z = setup.nominal_surface_z - 0.006;
+        let rec = Recording {
+            t: (0..n).map(|k| k as f64 * 1e-3).collect(),
+            p: vec![[0.0, 0.0, z]; n],
+            f: vec![[0.0; 3]; n],
+            v: vec![[0.0; 3]; n],
+            torque: None,
+            velocity_measured: true,
+        };
+        let pred = replay(&setup, &model, &rec, 0);
+        let held = pred.fz[n - 1];
+        assert!(held > 1.0, "held force {held} N");
+        let worst = pred
+            .fz
+            .iter()
+            .map(|f| (f - held).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 0.02 * held, "{worst} N off a held {held} N");
     }
 
     #[test]

@@ -197,6 +197,17 @@ impl Breathing {
         self
     }
 
+    /// The same breathing started `lead` seconds early: after `lead` seconds of steps it
+    /// is where it would have been at its start (phase, rate slope and phase track all
+    /// reckoned from then). How a replay settles the body before a recording that
+    /// starts in contact without moving the recording's breath.
+    pub fn with_lead(mut self, lead: f64) -> Self {
+        let rate = self.params.rate_bpm / 60.0;
+        self.phase -= std::f64::consts::TAU * (rate * lead - 0.5 * self.rate_slope * lead * lead);
+        self.elapsed = -lead;
+        self
+    }
+
     /// The parameters.
     pub fn params(&self) -> &BreathingParams {
         &self.params
@@ -402,6 +413,48 @@ mod tests {
         assert_eq!(track_at(&[(1.0, 0.0), (3.0, 0.8)], 2.0), 0.4);
         assert_eq!(track_at(&[(1.0, 0.2)], -4.0), 0.2);
         assert_eq!(track_at(&[], 1.0), 0.0);
+    }
+
+    #[test]
+    fn a_law_started_early_reaches_its_start_after_the_lead() {
+        let torso = Torso::new(TorsoParams::default(), ProbeFace::default()).unwrap();
+        let params = BreathingParams {
+            rate_drift: 0.0,
+            phase: 0.4,
+            ..Default::default()
+        };
+        let make = || {
+            Breathing::new(params.clone(), &torso, 1)
+                .unwrap()
+                .with_rate_slope(0.002)
+                .with_phase_track(vec![(1.0, 0.0), (3.0, 0.8)])
+        };
+        let (dt, empty) = (0.002, Vec::new());
+        let ctx = LawContext {
+            t: 0.0,
+            dt,
+            u: &empty,
+            v: &empty,
+            mass: &empty,
+            rest: &[],
+            elastic_scale: 1.0,
+        };
+        let mut early = make().with_lead(0.8);
+        assert!((early.offset() - make().offset()).abs() > 1e-4);
+        for _ in 0..400 {
+            early.advance(&ctx);
+        }
+        let mut on_time = make();
+        for step in 0..2000 {
+            assert!(
+                (early.offset() - on_time.offset()).abs() < 1e-6,
+                "step {step}: {} against {}",
+                early.offset(),
+                on_time.offset()
+            );
+            early.advance(&ctx);
+            on_time.advance(&ctx);
+        }
     }
 
     /// Rise \[m\] of the top at the centre and halfway to a corner, at full inhalation.
