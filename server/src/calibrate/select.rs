@@ -766,11 +766,12 @@ fn select_effects(
             .as_ref()
             .map_or(whole, |w| figures((&null, &sig.predicted), Some(w)));
         if tracing::enabled!(tracing::Level::TRACE) {
-            for (k, _) in validation.iter().enumerate().filter(|(_, v)| **v) {
+            for k in (0..series.len()).filter(|&k| validation[k] || train[k]) {
                 let one: Vec<bool> = (0..series.len()).map(|j| j == k).collect();
                 tracing::trace!(
-                    "signature {name} on {}: {:.4} → {:.4} N",
+                    "signature {name} on {} ({}): {:.4} → {:.4} N",
                     series[k].file,
+                    if train[k] { "train" } else { "validation" },
                     rmse_where(channel, &one, &null, None),
                     rmse_where(channel, &one, &sig.predicted, None)
                 );
