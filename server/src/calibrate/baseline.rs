@@ -37,7 +37,6 @@ pub fn setup(dataset: &Dataset) -> Result<Setup, CalibrateError> {
             .map_err(|e| CalibrateError::Torso(e.to_string()))?;
     }
     torso.center_xy = meta.torso_center_xy;
-    let damping_time = torso.damping / torso.stiffness;
     Ok(Setup {
         torso,
         nominal_surface_z: meta.nominal_surface_z,
@@ -48,11 +47,7 @@ pub fn setup(dataset: &Dataset) -> Result<Setup, CalibrateError> {
             .collect(),
         recording_sites: meta.recordings.iter().map(|e| e.site.clone()).collect(),
         session: SessionClock::of(dataset),
-        approaches: dataset
-            .recordings
-            .iter()
-            .map(|rec| onset::approaches(rec, damping_time))
-            .collect(),
+        approaches: dataset.recordings.iter().map(onset::approaches).collect(),
     })
 }
 
@@ -82,23 +77,17 @@ fn initial_stiffness(dataset: &Dataset, train: &[usize], setup: &Setup) -> f64 {
 /// [`onset`]), relative to the median onset of all recordings, which becomes the global
 /// surface offset's starting value (it stays fitted: the particle torso's own contact
 /// may sit a little off the data's).
-/// The onsets are read with the model's own damping time (`damping / stiffness`, see
-/// [`onset::approaches`]). Returns the reference (the median onset) \[m\].
-fn heights_from_onsets(dataset: &Dataset, model: &mut Model) -> Option<f64> {
-    let damping_time = model.damping / model.stiffness;
+fn heights_from_onsets(dataset: &Dataset, model: &mut Model) {
     // Each recording's median onset and where the probe was then.
-    let points: Vec<Option<(f64, [f64; 2])>> = dataset
-        .recordings
-        .iter()
-        .map(|rec| onset::median_onset(rec, damping_time))
-        .collect();
+    let points: Vec<Option<(f64, [f64; 2])>> =
+        dataset.recordings.iter().map(onset::median_onset).collect();
     let onsets: Vec<Option<f64>> = points.iter().map(|p| p.map(|(z, _)| z)).collect();
     for (entry, z) in dataset.meta.recordings.iter().zip(&onsets) {
         tracing::debug!("contact onset of {}: {z:?}", entry.file);
     }
     let mut all: Vec<f64> = onsets.iter().flatten().copied().collect();
     if all.is_empty() {
-        return None;
+        return;
     }
     all.sort_by(f64::total_cmp);
     let reference = all[all.len() / 2];
@@ -150,7 +139,6 @@ fn heights_from_onsets(dataset: &Dataset, model: &mut Model) -> Option<f64> {
         path.anchor_m = anchor;
         path.height_source = source;
     }
-    Some(reference)
 }
 
 /// The fitted baseline and what its fit says about itself.
@@ -175,7 +163,7 @@ pub fn fit(setup: &Setup, dataset: &Dataset, split: &Split) -> Baseline {
     start.friction = setup.torso.friction;
     start.surface = geometry::sites(dataset);
     start.paths = geometry::paths(dataset);
-    let first_reference = heights_from_onsets(dataset, &mut start);
+    heights_from_onsets(dataset, &mut start);
     let global = Free {
         physics: true,
         stiffness: true,
@@ -196,15 +184,6 @@ pub fn fit(setup: &Setup, dataset: &Dataset, split: &Split) -> Baseline {
             intervals: false,
         },
     );
-    // The onsets again with the damping time the global stage found (the first read
-    // used the configured torso's), the fitted offset kept where it stood relative to
-    // them.
-    let mut model = model;
-    let fitted_offset = model.surface_offset;
-    if let (Some(first), Some(again)) = (first_reference, heights_from_onsets(dataset, &mut model))
-    {
-        model.surface_offset = fitted_offset + (again - first);
-    }
     let (model, diagnostics) = fit_model(
         setup,
         dataset,

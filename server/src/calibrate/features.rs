@@ -198,10 +198,7 @@ impl Series {
             predicted_xy: prediction.fxy.clone(),
             vxy: rec.v.iter().map(|v| [v[0], v[1]]).collect(),
             session: rec.t.iter().map(|&t| clock.share(index, t)).collect(),
-            onsets: super::onset::approaches(rec, 0.0)
-                .iter()
-                .map(|a| a.0)
-                .collect(),
+            onsets: super::onset::approaches(rec).iter().map(|a| a.0).collect(),
         }
     }
 

@@ -787,11 +787,7 @@ mod tests {
         let pred = replay(&setup, &model, &rec, 0);
         let held = pred.fz[n - 1];
         assert!(held > 1.0, "held force {held} N");
-        let worst = pred
-            .fz
-            .iter()
-            .map(|f| (f - held).abs())
-            .fold(0.0, f64::max);
+        let worst = pred.fz.iter().map(|f| (f - held).abs()).fold(0.0, f64::max);
         assert!(worst < 0.02 * held, "{worst} N off a held {held} N");
     }
 
