@@ -6,7 +6,7 @@
 //! tells them apart: a higher skin moves the onset, a stiffer tissue does not. So each
 //! approach from free air gives the height where the force leaves its free-air level:
 //! where it crossed `BAND_N[0]` above that level, raised by that force over the slope
-//! of the force in the band (see [`crossing_onset`]: within about `BAND_N[0] / k` of
+//! of the force in the band (see `crossing_onset`: within about `BAND_N[0] / k` of
 //! the skin whatever the contact damping's form; a stiffness scale changes the slope,
 //! barely where the force starts). A recording's surface is the median over its approaches.
 //!

@@ -477,7 +477,7 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
 }
 
 /// How long a replay settles the body before a recording that starts in contact \[s\]:
-/// [`SETTLE_DESCENT_S`] bringing the probe down from above the skin, the rest holding
+/// `SETTLE_DESCENT_S` bringing the probe down from above the skin, the rest holding
 /// it there (the replayed torso's damping time is tens of milliseconds).
 pub const SETTLE_S: f64 = 0.8;
 const SETTLE_DESCENT_S: f64 = 0.5;
