@@ -382,6 +382,19 @@ mod tests {
 
     /// The analytic offset calibration uses to place an onset's skin equals the offset the
     /// stepped law reaches, with a rate slope and a phase track.
+    /// One step of `dt` of a law that needs no particle state.
+    fn advance(law: &mut Breathing, dt: f64) {
+        law.advance(&LawContext {
+            t: 0.0,
+            dt,
+            u: &[],
+            v: &[],
+            mass: &[],
+            rest: &[],
+            elastic_scale: 1.0,
+        });
+    }
+
     #[test]
     fn offset_after_matches_the_stepped_law() {
         let torso = Torso::new(TorsoParams::default(), ProbeFace::default()).unwrap();
@@ -394,19 +407,10 @@ mod tests {
             .unwrap()
             .with_rate_slope(0.002)
             .with_phase_track(vec![(1.0, 0.0), (3.0, 0.8), (5.0, -0.3)]);
-        let (dt, empty) = (0.002, Vec::new());
-        let ctx = LawContext {
-            t: 0.0,
-            dt,
-            u: &empty,
-            v: &empty,
-            mass: &empty,
-            rest: &[],
-            elastic_scale: 1.0,
-        };
+        let dt = 0.002;
         let mut worst: f64 = 0.0;
         for step in 1..=3500 {
-            law.advance(&ctx);
+            advance(&mut law, dt);
             worst = worst.max((law.offset() - law.offset_after(step as f64 * dt)).abs());
         }
         assert!(worst < 1e-5, "worst difference {worst} m of a 5 mm breath");
@@ -429,20 +433,11 @@ mod tests {
                 .with_rate_slope(0.002)
                 .with_phase_track(vec![(1.0, 0.0), (3.0, 0.8)])
         };
-        let (dt, empty) = (0.002, Vec::new());
-        let ctx = LawContext {
-            t: 0.0,
-            dt,
-            u: &empty,
-            v: &empty,
-            mass: &empty,
-            rest: &[],
-            elastic_scale: 1.0,
-        };
+        let dt = 0.002;
         let mut early = make().with_lead(0.8);
         assert!((early.offset() - make().offset()).abs() > 1e-4);
         for _ in 0..400 {
-            early.advance(&ctx);
+            advance(&mut early, dt);
         }
         let mut on_time = make();
         for step in 0..2000 {
@@ -452,8 +447,8 @@ mod tests {
                 early.offset(),
                 on_time.offset()
             );
-            early.advance(&ctx);
-            on_time.advance(&ctx);
+            advance(&mut early, dt);
+            advance(&mut on_time, dt);
         }
     }
 
