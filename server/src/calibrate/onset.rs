@@ -45,8 +45,9 @@ const LIFTED_M: f64 = 0.001;
 pub const MIN_FREE_AIR_S: f64 = 0.2;
 
 /// The surface height [m, world z] under `rec`'s probe at its contact onsets, if it
-/// approached from free air at least once.
-pub fn surface_z(rec: &Recording) -> Option<f64> {
+/// approached from free air at least once (the tests' view of [`median_onset`]).
+#[cfg(test)]
+fn surface_z(rec: &Recording) -> Option<f64> {
     median_onset(rec).map(|(z, _)| z)
 }
 
