@@ -25,6 +25,7 @@ pub mod features;
 pub mod fit;
 pub mod geometry;
 pub mod high_pass;
+pub mod lateral_share;
 pub mod mismatch;
 pub mod model;
 pub mod noise;
@@ -45,7 +46,7 @@ use std::path::{Path, PathBuf};
 use crate::recordings::{Dataset, RecordingsError};
 use features::Series;
 use model::FitDiagnostics;
-use replay::{Model, Setup, replay_all};
+use replay::{Model, Setup};
 use split::Split;
 
 /// Why calibration failed.
@@ -205,12 +206,21 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
 
     progress.stage("fitting the baseline and the surface per site (replaying the simulator)");
     let fitted = baseline::fit(&setup, &dataset, &split);
-    let base = fitted.model.clone();
+    let mut base = fitted.model.clone();
     let k_per_unit = baseline::static_stiffness(&setup.torso) / setup.torso.stiffness;
     let k_eff = base.stiffness * k_per_unit;
 
     progress.stage("replaying every recording with the baseline");
-    let predictions = replay_all(&setup, &base, &dataset.recordings, &all);
+    // Twice: the second adds each site's tangential share read on the first (the body's
+    // replay is reused; the share is a sensor-side term).
+    let cache = replay::ReplayCache::new(n);
+    let predictions = cache.replay_all(&setup, &base, &dataset.recordings, &all);
+    let sites: Vec<String> = setup.sites.iter().map(|(name, _)| name.clone()).collect();
+    let mut train = vec![false; n];
+    split.train.iter().for_each(|&i| train[i] = true);
+    base.site_lateral_share =
+        lateral_share::site_shares(&series_of(&dataset, &setup, &predictions), &train, &sites);
+    let predictions = cache.replay_all(&setup, &base, &dataset.recordings, &all);
     let series = series_of(&dataset, &setup, &predictions);
     let (noise, noise_source) = noise::noise_floor(&series);
 

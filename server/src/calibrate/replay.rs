@@ -15,7 +15,7 @@ use super::geometry::{self, PathSurface, SiteSurface};
 use super::onset::median;
 use super::session::SessionClock;
 use crate::recordings::Recording;
-use crate::sim::ft_sensor::low_pass_alpha;
+use crate::sim::ft_sensor::{low_pass_alpha, pole_hz};
 use crate::sim::torso::{
     Breathing, BreathingParams, DepthDamping, ProbeFace, ProbeKinematics, Relaxation,
     SiteStiffness, Torso, TorsoParams, rise_profile,
@@ -81,9 +81,13 @@ pub struct Model {
     pub bias: f64,
     /// Sensor delay \[s\].
     pub delay: f64,
-    /// Sensor low-pass cut-off \[Hz\] (0: none).
+    /// Sensor low-pass cut-off (−3 dB) \[Hz\] (0: none).
     #[serde(default)]
     pub filter_cutoff_hz: f64,
+    /// Equal poles of the sensor low-pass (0 or 1: first order; see
+    /// [`crate::sim::ft_sensor::pole_hz`]).
+    #[serde(default)]
+    pub filter_order: u32,
     /// Change of the sensor's fz bias from the session's first sample to its last \[N\]
     /// (`bias` is the value at the first).
     #[serde(default)]
@@ -101,6 +105,10 @@ pub struct Model {
     /// not exactly upright. A nuisance, fitted only with the tangential channel.
     #[serde(default)]
     pub lateral_share: [f64; 2],
+    /// The same per site, beside `lateral_share`: the skin's tilt under each site
+    /// (baseline geometry, see [`super::lateral_share`]).
+    #[serde(default)]
+    pub site_lateral_share: Vec<(String, [f64; 2])>,
     /// Stiffness scale per site name.
     pub site_scale: Vec<(String, f64)>,
     /// The body's surface height at each site relative to `surface_offset` (baseline
@@ -134,11 +142,13 @@ impl Model {
             bias: 0.0,
             delay: 0.0,
             filter_cutoff_hz: 0.0,
+            filter_order: 1,
             bias_drift_n: 0.0,
             depth_damping: None,
             friction: 0.0,
             friction_viscous: 0.0,
             lateral_share: [0.0; 2],
+            site_lateral_share: Vec::new(),
             site_scale: Vec::new(),
             surface: Vec::new(),
             paths: Vec::new(),
@@ -151,8 +161,10 @@ impl Model {
             bias: 0.0,
             delay: 0.0,
             filter_cutoff_hz: 0.0,
+            filter_order: 1,
             bias_drift_n: 0.0,
             lateral_share: [0.0; 2],
+            site_lateral_share: Vec::new(),
             ..self.clone()
         }
     }
@@ -565,21 +577,29 @@ pub fn sense(
     let top = setup.torso_params(model).top_z();
     let surface = surface_of(setup, model, index);
     if model.filter_cutoff_hz > 0.0 {
-        let alpha = low_pass_alpha(model.filter_cutoff_hz, REPLAY_DT);
+        let order = model.filter_order.max(1);
+        let alpha = low_pass_alpha(pole_hz(model.filter_cutoff_hz, order), REPLAY_DT);
         for series in [&mut sim_f, &mut sim_fx, &mut sim_fy] {
-            let mut y = series[0];
-            for v in series.iter_mut() {
-                y += alpha * (*v - y);
-                *v = y;
+            for _ in 0..order {
+                let mut y = series[0];
+                for v in series.iter_mut() {
+                    y += alpha * (*v - y);
+                    *v = y;
+                }
             }
         }
     }
+    let site_share = setup
+        .recording_sites
+        .get(index)
+        .and_then(|site| model.site_lateral_share.iter().find(|(s, _)| s == site))
+        .map_or([0.0; 2], |(_, share)| *share);
+    let [sx, sy] = [0, 1].map(|k| model.lateral_share[k] + site_share[k]);
     let mut out = Prediction::default();
     for (i, &t) in recording.t.iter().enumerate() {
         let f = interp(sim_t, &sim_f, t - model.delay);
         let drift = model.bias_drift_n * setup.session.share(index, t);
         out.fz.push(f + model.bias + drift);
-        let [sx, sy] = model.lateral_share;
         out.fxy.push([
             interp(sim_t, &sim_fx, t - model.delay) + sx * f,
             interp(sim_t, &sim_fy, t - model.delay) + sy * f,

@@ -70,11 +70,13 @@ fn model_json(m: &Model) -> serde_json::Value {
         "sensor_bias_fz_n": m.bias,
         "sensor_delay_s": m.delay,
         "sensor_low_pass_hz": m.filter_cutoff_hz,
+        "sensor_low_pass_order": m.filter_order.max(1),
         "sensor_bias_drift_n": m.bias_drift_n,
         "depth_damping": m.depth_damping,
         "friction": m.friction,
         "friction_viscous_ns_per_m": m.friction_viscous,
         "probe_tilt_share": m.lateral_share,
+        "tangential_share_by_site": m.site_lateral_share.iter().cloned().collect::<std::collections::BTreeMap<_, _>>(),
         "stiffness_scale_by_site": m.site_scale.iter().cloned().collect::<std::collections::BTreeMap<_, _>>(),
     })
 }
@@ -304,6 +306,7 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
     ft.bias[2] = -m.bias;
     ft.delay_s = m.delay;
     ft.low_pass_hz = m.filter_cutoff_hz;
+    ft.low_pass_order = m.filter_order.max(1);
     ft.bias_drift[2] = -m.bias_drift_n / o.setup.session.length().max(1e-9);
     let scene = CalibratedScene {
         torso: o.setup.torso_params(m),
@@ -434,6 +437,19 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
             s,
             "\nSites without a training recording, surface fitted on their own held-out recordings: {}.",
             o.surface_from_heldout.join(", ")
+        );
+    }
+    if !o.calibrated.site_lateral_share.is_empty() {
+        let shares: Vec<String> = o
+            .calibrated
+            .site_lateral_share
+            .iter()
+            .map(|(site, [x, y])| format!("{site} ({:+.1} %, {:+.1} %)", 100.0 * x, 100.0 * y))
+            .collect();
+        let _ = writeln!(
+            s,
+            "\nShare of the normal force in fx, fy at rest by site (the skin's and the probe's tilt; nuisance geometry, read on training recordings): {}.",
+            shares.join(", ")
         );
     }
     let _ = writeln!(s, "\n## Where the baseline misses\n");

@@ -5,7 +5,8 @@
 //! probe (rapier contacts and the torso's skin) plus the tool's weight minus its inertial
 //! force, `F = F_contact + m·g - m·a`, with torques about the sensor origin. Optional
 //! realism, all off by default: a bias (constant, or drifting linearly in time), white
-//! Gaussian noise, a first-order low-pass filter and a transport delay; the noise is seeded, so runs reproduce.
+//! Gaussian noise, a low-pass filter (first order, or several equal poles) and a
+//! transport delay; the noise is seeded, so runs reproduce.
 
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
@@ -17,6 +18,17 @@ use serde::{Deserialize, Serialize};
 /// held over the step (the sensor filter and the calibration's replay share it).
 pub fn low_pass_alpha(cutoff_hz: f64, dt: f64) -> f64 {
     1.0 - (-2.0 * std::f64::consts::PI * cutoff_hz * dt).exp()
+}
+
+/// Frequency of each of `order` equal first-order poles whose cascade is 3 dB down at
+/// `cutoff_hz`: `f_c / √(2^(1/n) − 1)` (two poles: `f_c / 0.6436`).
+pub fn pole_hz(cutoff_hz: f64, order: u32) -> f64 {
+    let n = f64::from(order.max(1));
+    cutoff_hz / (2f64.powf(1.0 / n) - 1.0).sqrt()
+}
+
+fn one() -> u32 {
+    1
 }
 
 /// Sensor imperfections.
@@ -32,8 +44,12 @@ pub struct FtSensorParams {
     pub force_noise: f64,
     /// Standard deviation of torque noise [N·m]. Default 0.
     pub torque_noise: f64,
-    /// Low-pass cut-off \[Hz\]; 0 disables the filter. Default 0.
+    /// Low-pass cut-off (−3 dB) \[Hz\]; 0 disables the filter. Default 0.
     pub low_pass_hz: f64,
+    /// Poles of the low-pass: 1 (first order) or more equal ones (2: critically damped
+    /// second order), the cascade 3 dB down at `low_pass_hz`. Default 1.
+    #[serde(default = "one")]
+    pub low_pass_order: u32,
     /// Subtract the tool's weight (a tared sensor). Default false: the weight is read,
     /// like an untared sensor.
     pub compensate_tool_weight: bool,
@@ -49,9 +65,63 @@ impl Default for FtSensorParams {
             force_noise: 0.0,
             torque_noise: 0.0,
             low_pass_hz: 0.0,
+            low_pass_order: 1,
             compensate_tool_weight: false,
             delay_s: 0.0,
         }
+    }
+}
+
+/// A sensor parameter out of range.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("ft_sensor `{key}` must be {expected}, got {got}")]
+pub struct FtSensorParamError {
+    /// The key.
+    pub key: &'static str,
+    /// The allowed range.
+    pub expected: &'static str,
+    /// The value given.
+    pub got: f64,
+}
+
+impl FtSensorParams {
+    /// Check ranges (a delay or a filter order is memory kept per env).
+    pub fn validate(&self) -> Result<(), FtSensorParamError> {
+        let err = |key, expected, got| Err(FtSensorParamError { key, expected, got });
+        let finite = self
+            .bias
+            .iter()
+            .chain(&self.bias_drift)
+            .all(|v| v.is_finite());
+        if !finite {
+            return err("bias", "finite (bias and bias_drift)", f64::NAN);
+        }
+        for (key, v) in [
+            ("force_noise", self.force_noise),
+            ("torque_noise", self.torque_noise),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return err(key, "finite and ≥ 0", v);
+            }
+        }
+        if !(0.0..=10_000.0).contains(&self.low_pass_hz) {
+            return err(
+                "low_pass_hz",
+                "in [0, 10000] Hz (0: no filter)",
+                self.low_pass_hz,
+            );
+        }
+        if !(1..=4).contains(&self.low_pass_order) {
+            return err(
+                "low_pass_order",
+                "1, 2, 3 or 4",
+                f64::from(self.low_pass_order),
+            );
+        }
+        if !(0.0..=1.0).contains(&self.delay_s) {
+            return err("delay_s", "in [0, 1] s", self.delay_s);
+        }
+        Ok(())
     }
 }
 
@@ -60,7 +130,8 @@ impl Default for FtSensorParams {
 pub struct FtSensor {
     params: FtSensorParams,
     rng: Pcg64Mcg,
-    filtered: Option<[f64; 6]>,
+    /// Each pole's output (empty until the first reading).
+    filtered: Vec<[f64; 6]>,
     history: std::collections::VecDeque<[f64; 6]>,
     /// Time since the sensor was created \[s\] (drift keeps running across resets, as a
     /// real sensor's does).
@@ -73,7 +144,7 @@ impl FtSensor {
         Self {
             params,
             rng: Pcg64Mcg::seed_from_u64(seed),
-            filtered: None,
+            filtered: Vec::new(),
             history: std::collections::VecDeque::new(),
             elapsed: 0.0,
         }
@@ -87,7 +158,7 @@ impl FtSensor {
     /// Reseed the noise and clear the filter.
     pub fn reset(&mut self, seed: u64) {
         self.rng = Pcg64Mcg::seed_from_u64(seed);
-        self.filtered = None;
+        self.filtered.clear();
         self.history.clear();
     }
 
@@ -114,13 +185,77 @@ impl FtSensor {
             }
         }
         if self.params.low_pass_hz > 0.0 {
-            let alpha = low_pass_alpha(self.params.low_pass_hz, dt);
-            let previous = self.filtered.unwrap_or(out);
-            for i in 0..6 {
-                out[i] = previous[i] + alpha * (out[i] - previous[i]);
+            let order = self.params.low_pass_order.max(1) as usize;
+            let alpha = low_pass_alpha(pole_hz(self.params.low_pass_hz, order as u32), dt);
+            if self.filtered.is_empty() {
+                self.filtered = vec![out; order];
             }
-            self.filtered = Some(out);
+            for stage in &mut self.filtered {
+                for i in 0..6 {
+                    stage[i] += alpha * (out[i] - stage[i]);
+                }
+                out = *stage;
+            }
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Step response of the sensor at 1 kHz, no noise.
+    fn step(low_pass_hz: f64, order: u32) -> Vec<f64> {
+        let mut sensor = FtSensor::new(
+            FtSensorParams {
+                low_pass_hz,
+                low_pass_order: order,
+                ..FtSensorParams::default()
+            },
+            0,
+        );
+        sensor.measure([0.0; 6], 1e-3);
+        (0..2000)
+            .map(|_| sensor.measure([0.0, 0.0, 1.0, 0.0, 0.0, 0.0], 1e-3)[2])
+            .collect()
+    }
+
+    #[test]
+    fn two_equal_poles_lag_more_than_one_and_settle_to_the_input() {
+        let (one, two) = (step(10.0, 1), step(10.0, 2));
+        // One pole: 63 % after one time constant (15.9 ms).
+        assert!((one[15] - 0.63).abs() < 0.03, "{}", one[15]);
+        // Two poles starting from rest: an S-shaped rise, slower at first.
+        assert!(two[5] < 0.5 * one[5], "{} vs {}", two[5], one[5]);
+        assert!((two[1999] - 1.0).abs() < 1e-6 && (one[1999] - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn the_cascade_is_three_db_down_at_its_cutoff() {
+        for order in 1..=4 {
+            let pole = pole_hz(10.0, order);
+            let gain = (1.0 + (10.0 / pole).powi(2)).powf(-(order as f64) / 2.0);
+            assert!(
+                (gain - 0.5f64.sqrt()).abs() < 1e-12,
+                "order {order}: {gain}"
+            );
+        }
+        assert!((pole_hz(14.256, 2) - 14.256 / 0.6436).abs() < 0.01);
+    }
+
+    #[test]
+    fn out_of_range_sensor_keys_are_named() {
+        let bad = FtSensorParams {
+            low_pass_order: 1_000_000,
+            ..FtSensorParams::default()
+        };
+        assert_eq!(bad.validate().unwrap_err().key, "low_pass_order");
+        let bad = FtSensorParams {
+            delay_s: 1e9,
+            ..FtSensorParams::default()
+        };
+        assert_eq!(bad.validate().unwrap_err().key, "delay_s");
+        assert!(FtSensorParams::default().validate().is_ok());
     }
 }

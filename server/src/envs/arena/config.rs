@@ -152,6 +152,9 @@ impl<T: TaskConfig> ArenaConfig<T> {
         self.probe
             .validate()
             .map_err(|e| wrap("probe", e.to_string()))?;
+        self.ft_sensor
+            .validate()
+            .map_err(|e| wrap("ft_sensor", e.to_string()))?;
         if let Some(b) = &self.breathing {
             b.validate().map_err(|e| wrap("breathing", e.to_string()))?;
             if self.torso.is_none() {
