@@ -65,22 +65,20 @@ struct File {
 /// The dataset's files, in the order their first entry is listed.
 fn files(dataset: &Dataset) -> Vec<File> {
     let entries = &dataset.meta.recordings;
-    let source = |i: usize| {
-        entries[i]
+    let mut out: Vec<(&str, File)> = Vec::new();
+    for (i, entry) in entries.iter().enumerate() {
+        let source = entry
             .segment
             .as_ref()
-            .map_or(entries[i].file.as_str(), |s| s.source.as_str())
-    };
-    let mut out: Vec<(&str, File)> = Vec::new();
-    for i in 0..entries.len() {
-        match out.iter_mut().find(|(name, _)| *name == source(i)) {
+            .map_or(entry.file.as_str(), |s| s.source.as_str());
+        match out.iter_mut().find(|(name, _)| *name == source) {
             Some((_, file)) => file.entries.push(i),
             None => out.push((
-                source(i),
+                source,
                 File {
                     entries: vec![i],
-                    site: entries[i].site.clone(),
-                    protocol: entries[i].protocol.clone(),
+                    site: entry.site.clone(),
+                    protocol: entry.protocol.clone(),
                 },
             )),
         }

@@ -123,11 +123,9 @@ fn low_pass(s: &Series, x: &[f64], cutoff: f64, order: u32) -> Vec<f64> {
     let mut out = x.to_vec();
     for _ in 0..order {
         let mut y = out[0];
-        for i in 0..s.len() {
-            if i > 0 {
-                y += low_pass_alpha(pole, s.t[i] - s.t[i - 1]) * (out[i] - y);
-            }
-            out[i] = y;
+        for (i, v) in out.iter_mut().enumerate().skip(1) {
+            y += low_pass_alpha(pole, s.t[i] - s.t[i - 1]) * (*v - y);
+            *v = y;
         }
     }
     out
