@@ -15,7 +15,7 @@ use super::geometry::{self, PathSurface, SiteSurface};
 use super::onset::median;
 use super::session::SessionClock;
 use crate::recordings::Recording;
-use crate::sim::ft_sensor::{low_pass_alpha, pole_hz};
+use crate::sim::ft_sensor::low_pass_alpha;
 use crate::sim::torso::{
     Breathing, BreathingParams, DepthDamping, ProbeFace, ProbeKinematics, Relaxation,
     SiteStiffness, Torso, TorsoParams, rise_profile,
@@ -81,13 +81,9 @@ pub struct Model {
     pub bias: f64,
     /// Sensor delay \[s\].
     pub delay: f64,
-    /// Sensor low-pass cut-off (−3 dB) \[Hz\] (0: none).
+    /// Sensor low-pass cut-off \[Hz\] (0: none).
     #[serde(default)]
     pub filter_cutoff_hz: f64,
-    /// Equal poles of the sensor low-pass (0 or 1: first order; see
-    /// [`crate::sim::ft_sensor::pole_hz`]).
-    #[serde(default)]
-    pub filter_order: u32,
     /// Change of the sensor's fz bias from the session's first sample to its last \[N\]
     /// (`bias` is the value at the first).
     #[serde(default)]
@@ -142,7 +138,6 @@ impl Model {
             bias: 0.0,
             delay: 0.0,
             filter_cutoff_hz: 0.0,
-            filter_order: 1,
             bias_drift_n: 0.0,
             depth_damping: None,
             friction: 0.0,
@@ -161,7 +156,6 @@ impl Model {
             bias: 0.0,
             delay: 0.0,
             filter_cutoff_hz: 0.0,
-            filter_order: 1,
             bias_drift_n: 0.0,
             lateral_share: [0.0; 2],
             site_lateral_share: Vec::new(),
@@ -577,15 +571,12 @@ pub fn sense(
     let top = setup.torso_params(model).top_z();
     let surface = surface_of(setup, model, index);
     if model.filter_cutoff_hz > 0.0 {
-        let order = model.filter_order.max(1);
-        let alpha = low_pass_alpha(pole_hz(model.filter_cutoff_hz, order), REPLAY_DT);
+        let alpha = low_pass_alpha(model.filter_cutoff_hz, REPLAY_DT);
         for series in [&mut sim_f, &mut sim_fx, &mut sim_fy] {
-            for _ in 0..order {
-                let mut y = series[0];
-                for v in series.iter_mut() {
-                    y += alpha * (*v - y);
-                    *v = y;
-                }
+            let mut y = series[0];
+            for v in series.iter_mut() {
+                y += alpha * (*v - y);
+                *v = y;
             }
         }
     }

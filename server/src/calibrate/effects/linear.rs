@@ -294,7 +294,7 @@ pub(super) fn steady_stretches(s: &Series) -> Vec<std::ops::Range<usize>> {
 }
 
 /// A sensor stage applied to a signal on a series' time base, at a grid value.
-pub(super) type Stage<'a> = dyn Fn(&Series, &[f64], f64) -> Vec<f64> + Sync + 'a;
+pub(super) type Stage = dyn Fn(&Series, &[f64], f64) -> Vec<f64> + Sync;
 
 /// A sensor-stage signature: the sensor transform `stage(s, x, g)` (grid value `g`) of
 /// a signal `x` on the series' time base. The stage acts on everything the body pushes
@@ -308,7 +308,7 @@ pub(super) fn fit_sensor_stage(
     train: &[bool],
     base: Base,
     grid: &[f64],
-    stage: &Stage<'_>,
+    stage: &Stage,
 ) -> (f64, Vec<Vec<f64>>, Readjust) {
     let mut best: Option<(f64, Solved, Vec<Vec<f64>>)> = None;
     for &g in grid {
