@@ -27,10 +27,6 @@ pub fn pole_hz(cutoff_hz: f64, order: u32) -> f64 {
     cutoff_hz / (2f64.powf(1.0 / n) - 1.0).sqrt()
 }
 
-fn one() -> u32 {
-    1
-}
-
 /// Sensor imperfections.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -48,7 +44,6 @@ pub struct FtSensorParams {
     pub low_pass_hz: f64,
     /// Poles of the low-pass: 1 (first order) or more equal ones (2: critically damped
     /// second order), the cascade 3 dB down at `low_pass_hz`. Default 1.
-    #[serde(default = "one")]
     pub low_pass_order: u32,
     /// Subtract the tool's weight (a tared sensor). Default false: the weight is read,
     /// like an untared sensor.
@@ -257,5 +252,8 @@ mod tests {
         };
         assert_eq!(bad.validate().unwrap_err().key, "delay_s");
         assert!(FtSensorParams::default().validate().is_ok());
+        // A config that does not name the order gets one pole.
+        let parsed: FtSensorParams = serde_json::from_str(r#"{"low_pass_hz": 5.0}"#).unwrap();
+        assert_eq!(parsed.low_pass_order, 1);
     }
 }
