@@ -11,7 +11,8 @@ use super::fit::Effort;
 use super::geometry::{self, Source};
 use super::model::{FitDiagnostics, Free, Geometry, fit_model};
 use super::onset;
-use super::replay::{Model, Setup};
+use super::onset_geometry;
+use super::replay::{Model, OnsetAnchor, Setup};
 use super::split::Split;
 
 /// LM iterations of the global stage (stiffness, damping, one surface height).
@@ -73,74 +74,6 @@ fn initial_stiffness(dataset: &Dataset, train: &[usize], setup: &Setup) -> f64 {
     if rr > 0.0 { fr / rr } else { 1729.0 }
 }
 
-/// Sites' heights and recordings' corrections from the contact onsets (see
-/// [`onset`]), relative to the median onset of all recordings, which becomes the global
-/// surface offset's starting value (it stays fitted: the particle torso's own contact
-/// may sit a little off the data's).
-fn heights_from_onsets(dataset: &Dataset, model: &mut Model) {
-    // Each recording's median onset and where the probe was then.
-    let points: Vec<Option<(f64, [f64; 2])>> =
-        dataset.recordings.iter().map(onset::median_onset).collect();
-    let onsets: Vec<Option<f64>> = points.iter().map(|p| p.map(|(z, _)| z)).collect();
-    for (entry, z) in dataset.meta.recordings.iter().zip(&onsets) {
-        tracing::debug!("contact onset of {}: {z:?}", entry.file);
-    }
-    let mut all: Vec<f64> = onsets.iter().flatten().copied().collect();
-    if all.is_empty() {
-        return;
-    }
-    all.sort_by(f64::total_cmp);
-    let reference = all[all.len() / 2];
-    model.surface_offset = reference - dataset.meta.nominal_surface_z;
-    for site in &mut model.surface {
-        let mut here: Vec<f64> = onsets
-            .iter()
-            .zip(&dataset.meta.recordings)
-            .filter(|(_, e)| e.site == site.site)
-            .filter_map(|(z, _)| *z)
-            .collect();
-        if here.is_empty() {
-            continue;
-        }
-        here.sort_by(f64::total_cmp);
-        site.height_m = here[here.len() / 2] - reference;
-        site.source = Source::Onset;
-    }
-    for path in &mut model.paths {
-        let entry = &dataset.meta.recordings[path.recording];
-        let site = model.surface.iter().find(|s| s.site == entry.site);
-        if let (Some(z), Some(site)) = (onsets[path.recording], site)
-            && site.source == Source::Onset
-        {
-            path.height_m = z - reference - site.height_m;
-            path.height_source = Source::Onset;
-            if let Some((_, xy)) = points[path.recording] {
-                path.anchor_m = (xy[0] - path.centre[0]) * path.along[0]
-                    + (xy[1] - path.centre[1]) * path.along[1];
-            }
-        }
-    }
-    // A later segment without an onset of its own (it began in contact, after the
-    // logger's pause) stands on its file's first segment's skin.
-    for k in 0..model.paths.len() {
-        let path = &model.paths[k];
-        if path.height_source == Source::Onset {
-            continue;
-        }
-        let Some(leader) = path
-            .follows
-            .and_then(|l| model.paths.iter().find(|p| p.recording == l))
-        else {
-            continue;
-        };
-        let (height, anchor, source) = (leader.height_m, leader.anchor_m, leader.height_source);
-        let path = &mut model.paths[k];
-        path.height_m = height;
-        path.anchor_m = anchor;
-        path.height_source = source;
-    }
-}
-
 /// The fitted baseline and what its fit says about itself.
 pub struct Baseline {
     /// The model.
@@ -163,7 +96,23 @@ pub fn fit(setup: &Setup, dataset: &Dataset, split: &Split) -> Baseline {
     start.friction = setup.torso.friction;
     start.surface = geometry::sites(dataset);
     start.paths = geometry::paths(dataset);
-    heights_from_onsets(dataset, &mut start);
+    // The skin where the contact onsets put it; their median becomes the global surface
+    // offset's starting value (it stays fitted: the particle torso's own contact may sit
+    // a little off the data's).
+    for (entry, found) in dataset.meta.recordings.iter().zip(&setup.approaches) {
+        let at = onset::median_onset(found, 0.0).map(|a| (a.z, a.speed));
+        tracing::debug!(
+            "contact onset of {} (height, speed down): {at:?}",
+            entry.file
+        );
+    }
+    if let Some(reference) = onset_geometry::place(setup, &mut start, 0.0) {
+        start.surface_offset = reference - dataset.meta.nominal_surface_z;
+        start.onset_anchor = Some(OnsetAnchor {
+            offset_m: start.surface_offset,
+            speed_m_per_s: onset::reference_speed(setup.approaches.iter().map(Vec::as_slice)),
+        });
+    }
     let global = Free {
         physics: true,
         stiffness: true,

@@ -4,6 +4,7 @@
 
 use crate::recordings::{Recording, RecordingEntry};
 
+use super::onset::Approach;
 use super::replay::Prediction;
 use super::session::SessionClock;
 
@@ -74,9 +75,13 @@ pub struct Series {
     pub session: Vec<f64>,
     /// Mean probe position in contact, world xy \[m\] (all samples without contact).
     pub xy: [f64; 2],
-    /// Times of the approaches from free air whose contact onsets placed the skin \[s\]
-    /// (see `onset::approaches`): a surface that moves (breathing) was read there.
-    pub onsets: Vec<f64>,
+    /// The approaches from free air whose contact onsets placed the skin (see
+    /// `onset::approaches`): a surface that moves (breathing) was read there, and a
+    /// sensor lag read it `v·τ` low.
+    pub onsets: Vec<Approach>,
+    /// The onset that placed this recording's skin: its own median one, or its file's
+    /// first segment's for a later segment without one (see `onset_geometry`).
+    pub placed_by: Option<Approach>,
 }
 
 /// Clearance above the model's skin for a sample to count as free air \[m\]: more than
@@ -198,7 +203,8 @@ impl Series {
             predicted_xy: prediction.fxy.clone(),
             vxy: rec.v.iter().map(|v| [v[0], v[1]]).collect(),
             session: rec.t.iter().map(|&t| clock.share(index, t)).collect(),
-            onsets: super::onset::approaches(rec).iter().map(|a| a.0).collect(),
+            placed_by: None,
+            onsets: super::onset::approaches(rec),
         }
     }
 

@@ -114,6 +114,7 @@ mod tests {
             session: vec![0.0; n],
             xy: [0.5, 0.0],
             onsets: Vec::new(),
+            placed_by: None,
             predicted,
         }
     }

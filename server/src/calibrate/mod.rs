@@ -30,6 +30,7 @@ pub mod mismatch;
 pub mod model;
 pub mod noise;
 pub mod onset;
+pub mod onset_geometry;
 pub mod replay;
 pub mod report;
 pub mod select;
@@ -277,7 +278,12 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
 
 /// Every recording with a prediction of it (predictions in recording order).
 fn series_of(dataset: &Dataset, setup: &Setup, predictions: &[replay::Prediction]) -> Vec<Series> {
-    dataset
+    let file_of = |e: &crate::recordings::RecordingEntry| {
+        e.segment
+            .as_ref()
+            .map_or(e.file.clone(), |s| s.source.clone())
+    };
+    let mut series: Vec<Series> = dataset
         .meta
         .recordings
         .iter()
@@ -292,7 +298,16 @@ fn series_of(dataset: &Dataset, setup: &Setup, predictions: &[replay::Prediction
                 .unwrap_or(0);
             Series::new(i, e, site_index, rec, p, &setup.session)
         })
-        .collect()
+        .collect();
+    // A later segment without an onset stands on its file's first segment's skin.
+    for i in 0..series.len() {
+        let leader = (0..series.len())
+            .find(|&j| file_of(&dataset.meta.recordings[j]) == file_of(&dataset.meta.recordings[i]))
+            .unwrap_or(i);
+        series[i].placed_by = onset::median_onset(&series[i].onsets, 0.0)
+            .or_else(|| onset::median_onset(&series[leader].onsets, 0.0));
+    }
+    series
 }
 
 /// Path helper for outputs.

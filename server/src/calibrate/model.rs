@@ -10,6 +10,7 @@ use super::effects;
 use super::fit::{Bound, Convergence, Effort, levenberg_marquardt_blocks};
 use super::geometry::{PATH_PRIOR, PRIOR_FORCE_N, Source, belongs_to};
 use super::high_pass::high_pass;
+use super::onset_geometry;
 use super::replay::{Model, ReplayCache, Setup};
 
 /// Time constants a relaxation branch may take \[s\] (the signature's grid spans the same).
@@ -173,10 +174,11 @@ fn pack(
         let anchored = free.geometry == Geometry::Fixed
             || model.surface.iter().any(|g| g.source == Source::Onset);
         if free.offset && anchored {
+            let (lo, hi) = model.offset_bounds();
             p.global(
                 "baseline.surface_offset_m",
-                model.surface_offset,
-                (-0.02, 0.02, 5e-5),
+                model.surface_offset.clamp(lo, hi),
+                (lo, hi, 5e-5),
             );
         }
         for name in effects {
@@ -476,11 +478,17 @@ pub fn fit_model(
 }
 
 /// Turn accepted signatures into simulator elements of `model`.
+/// A sensor lag the effects give or change re-reads the contact onsets (see
+/// [`onset_geometry`]).
 pub fn apply_effects(model: &mut Model, accepted: &[Accepted], setup: &Setup) {
+    let lag = model.sensor_lag_s();
     for a in accepted {
         effects::named(a.name)
             .expect("accepted effects are catalogue effects")
             .apply(&a.params, model, setup);
+    }
+    if model.sensor_lag_s() != lag {
+        onset_geometry::relag(setup, model);
     }
 }
 

@@ -18,9 +18,12 @@
 //! Counted, those put an independent generator's chirps 2–3 mm too deep, and a baseline
 //! built on them moved the whole skin by 2 mm to compensate.
 //!
-//! Biases to know: a sensor delay `τ` places the onset `v·τ` too low (0.2 mm at 10 mm/s
-//! and 20 ms), breathing moves it with the phase (the median over approaches helps), and
-//! a recording that starts in contact has no onset (its surface is fitted instead).
+//! Biases to know: a sensor lag `τ` (a delay, or a low-pass's `1/2πf_c`) places the
+//! onset `v·τ` too low (0.2 mm at 10 mm/s and 20 ms; 0.3–1.0 mm on holdout-3 seed 13's
+//! delay, whose approaches ran at different speeds) — each [`Approach`] keeps its speed
+//! so a model with a lag reads it again ([`Approach::skin_z`]); breathing moves it with
+//! the phase (the median over approaches helps); a recording that starts in contact has
+//! no onset (its surface is fitted instead).
 
 use crate::recordings::Recording;
 
@@ -30,6 +33,9 @@ const FREE_AIR_S: f64 = 0.3;
 /// The onset band above the free-air level \[N\]: its lower edge is at least this, or
 /// 5 σ of the free-air force.
 const BAND_N: [f64; 2] = [0.15, 1.5];
+/// Stretches whose median force is within this of the lowest one's are free air \[N\]
+/// (a third of the band's top: contact pushes harder).
+const FREE_AIR_SPAN_N: f64 = BAND_N[1] / 3.0;
 /// Probe speed down [m/s] that counts as an approach.
 const APPROACH_SPEED: f64 = 0.0005;
 /// At least this many samples in the band for a line.
@@ -44,36 +50,76 @@ const LIFTED_M: f64 = 0.001;
 /// between presses lasts longer; a chirp's up-swing, shorter).
 pub const MIN_FREE_AIR_S: f64 = 0.2;
 
+/// One approach from free air and the skin its contact onset read.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Approach {
+    /// When the force left its free-air level \[s\]: a model that moves the surface
+    /// (breathing) says where the skin was at that moment.
+    pub t: f64,
+    /// The skin's height there as the force shows it [m, world z].
+    pub z: f64,
+    /// The probe's speed down at the onset \[m/s\].
+    pub speed: f64,
+    /// The probe's world xy at the onset \[m\].
+    pub xy: [f64; 2],
+}
+
+impl Approach {
+    /// The skin's height if the sensor lags the body by `lag` \[s\]: the force that
+    /// crossed the band had been reached `lag` earlier, `speed · lag` higher.
+    pub fn skin_z(&self, lag: f64) -> f64 {
+        self.z + self.speed * lag
+    }
+}
+
 /// The surface height [m, world z] under `rec`'s probe at its contact onsets, if it
 /// approached from free air at least once (the tests' view of [`median_onset`]).
 #[cfg(test)]
 fn surface_z(rec: &Recording) -> Option<f64> {
-    median_onset(rec).map(|(z, _)| z)
+    median_onset(&approaches(rec), 0.0).map(|a| a.skin_z(0.0))
 }
 
-/// The median of `rec`'s contact onsets ([`approaches`]) and the probe's world xy at it.
-pub fn median_onset(rec: &Recording) -> Option<(f64, [f64; 2])> {
-    let mut found = approaches(rec);
+/// The approach whose onset is the median of `found`'s, read with a sensor lag `lag`
+/// \[s\] (see [`Approach::skin_z`]).
+pub fn median_onset(found: &[Approach], lag: f64) -> Option<Approach> {
+    let mut found = found.to_vec();
     if found.is_empty() {
         return None;
     }
-    found.sort_by(|a, b| a.1.total_cmp(&b.1));
-    let (t, z) = found[found.len() / 2];
-    let k = rec.t.partition_point(|&s| s < t).min(rec.len() - 1);
-    Some((z, [rec.p[k][0], rec.p[k][1]]))
+    found.sort_by(|a, b| a.skin_z(lag).total_cmp(&b.skin_z(lag)));
+    Some(found[found.len() / 2])
 }
 
-/// Each approach from free air in `rec`: (time \[s\], surface height [m, world z]) at
-/// its contact onset. The time lets a model that moves the surface (breathing) say
-/// where the skin was at that moment.
-pub fn approaches(rec: &Recording) -> Vec<(f64, f64)> {
+/// The speed down at the median onset of every recording that has one, and the median
+/// of those \[m/s\] (0 without onsets): a lag raises each onset by `speed · lag`, and the
+/// global surface offset, fitted with the onsets as they were read, took the common
+/// part, `reference_speed · lag` (holdout-3 seed 13's delay: the offset moved the skin
+/// 0.6 mm above the onsets; 25 ms at the median 27 mm/s is 0.7 mm).
+pub fn reference_speed<'a>(recordings: impl Iterator<Item = &'a [Approach]>) -> f64 {
+    let speeds: Vec<f64> = recordings
+        .filter_map(|found| median_onset(found, 0.0))
+        .map(|a| a.speed)
+        .collect();
+    if speeds.is_empty() {
+        0.0
+    } else {
+        median(speeds)
+    }
+}
+
+/// Each approach from free air in `rec` and the skin its contact onset read.
+pub fn approaches(rec: &Recording) -> Vec<Approach> {
     let n = rec.len();
-    // Free air: the stretch of FREE_AIR_S with the lowest median force (the probe only
-    // pushes), not the first one — a recording that starts in contact (a segment after a
-    // logger's pause) would take a contact force for the free-air level, and every
-    // later onset would land where the force reached it again: 1.5 mm deep on a blind
-    // generator's segment.
-    let mut head: Vec<f64> = Vec::new();
+    // Free air: the stretches of FREE_AIR_S whose median force is within
+    // FREE_AIR_SPAN_N of the lowest one (the probe only pushes), not the first one — a
+    // recording that starts in contact (a segment after a logger's pause) would take a
+    // contact force for the free-air level, and every later onset would land where the
+    // force reached it again: 1.5 mm deep on a blind generator's segment. The level is
+    // the median of their medians, not the lowest: a sensor's zero that wanders (coloured
+    // noise) has its lowest stretch 0.14 N under its typical one (holdout-3 seed 13),
+    // and with the level there every wander crossed the band, so no press counted as an
+    // approach from free air.
+    let mut stretches: Vec<(f64, Vec<f64>)> = Vec::new();
     let mut from = 0;
     while from < n {
         let stretch: Vec<f64> = (from..n)
@@ -81,17 +127,24 @@ pub fn approaches(rec: &Recording) -> Vec<(f64, f64)> {
             .map(|i| rec.f[i][2])
             .collect();
         from += stretch.len().max(1);
-        if stretch.len() >= MIN_BAND_SAMPLES
-            && (head.is_empty() || median(stretch.clone()) < median(head.clone()))
-        {
-            head = stretch;
+        if stretch.len() >= MIN_BAND_SAMPLES {
+            stretches.push((median(stretch.clone()), stretch));
         }
     }
-    if head.len() < MIN_BAND_SAMPLES {
+    let Some(lowest) = stretches.iter().map(|s| s.0).min_by(f64::total_cmp) else {
         return Vec::new();
-    }
-    let mut level = median(head.clone());
-    let spread = median(head.iter().map(|f| (f - level).abs()).collect()) / 0.6745;
+    };
+    let free: Vec<&(f64, Vec<f64>)> = stretches
+        .iter()
+        .filter(|s| s.0 < lowest + FREE_AIR_SPAN_N)
+        .collect();
+    let mut level = median(free.iter().map(|s| s.0).collect());
+    // The fast noise: the spread within each stretch, the median over them.
+    let spread = median(
+        free.iter()
+            .map(|(m, stretch)| median(stretch.iter().map(|f| (f - m).abs()).collect()))
+            .collect(),
+    ) / 0.6745;
     let low = BAND_N[0].max(5.0 * spread);
     let high = BAND_N[1].max(3.0 * low);
     let mut onsets = Vec::new();
@@ -122,11 +175,12 @@ pub fn approaches(rec: &Recording) -> Vec<(f64, f64)> {
             // skin, while the probe comes down: the band is the last run above `low`
             // before the force reaches `high`, and its level the free air just before.
             // Twice: the level just before the run found with the recording's level may
-            // find a later run.
+            // find a later run, or an earlier start where the zero had wandered below the
+            // recording's level.
             let mut first = start;
             let mut local = level;
             for _ in 0..2 {
-                for k in (first..end).rev() {
+                for k in (free_from..end).rev() {
                     if rec.f[k][2] - local < low {
                         first = k + 1;
                         break;
@@ -154,7 +208,12 @@ pub fn approaches(rec: &Recording) -> Vec<(f64, f64)> {
                 && let Some(z) = crossing_onset(rec, first, &band, local, low)
                 && highest >= z
             {
-                onsets.push((rec.t[first], z));
+                onsets.push(Approach {
+                    t: rec.t[first],
+                    z,
+                    speed: -rec.v[first][2],
+                    xy: [rec.p[first][0], rec.p[first][1]],
+                });
                 // Free air again once the probe is back above this skin: the level is
                 // read there afresh (the sensor's zero may have drifted meanwhile).
                 let mut k = end.max(last);
@@ -351,10 +410,83 @@ mod tests {
                 f[2] += 0.3;
             }
         }
-        for (t, z) in approaches(&rec) {
-            assert!((z - 0.9).abs() < 1e-4, "approach at {t} s: onset {z}");
+        for a in approaches(&rec) {
+            assert!(
+                (a.z - 0.9).abs() < 1e-4,
+                "approach at {} s: onset {}",
+                a.t,
+                a.z
+            );
         }
         assert_eq!(approaches(&rec).len(), 2);
+    }
+
+    #[test]
+    fn a_lagging_sensor_reads_the_skin_low_by_speed_times_lag_and_the_lag_corrects_it() {
+        // The same presses, once at 10 mm/s and once at 30 mm/s, through a sensor 40 ms
+        // late: the onsets sit 0.4 and 1.2 mm low, and read with the lag, at the skin.
+        let delay = 0.04;
+        let mut rec = Recording::default();
+        let dt = 0.002;
+        for i in 0..6000 {
+            let t = i as f64 * dt;
+            let (speed, t0) = if t < 6.0 { (0.01, 1.0) } else { (0.03, 7.0) };
+            let z_at = |t: f64| 0.91 - speed * (t - t0).clamp(0.0, 0.016 / speed);
+            let z = z_at(t);
+            let vz = if (t0..t0 + 0.016 / speed).contains(&t) {
+                -speed
+            } else {
+                0.0
+            };
+            // Lifted between the presses.
+            let (z, vz) = if (4.0..6.0).contains(&t) {
+                (0.91, 0.0)
+            } else {
+                (z, vz)
+            };
+            let lagged = if (4.0..6.0).contains(&(t - delay)) {
+                0.91
+            } else {
+                z_at(t - delay)
+            };
+            rec.t.push(t);
+            rec.p.push([0.0, 0.0, z]);
+            rec.v.push([0.0, 0.0, vz]);
+            rec.f.push([0.0, 0.0, 1000.0 * (0.9 - lagged).max(0.0)]);
+        }
+        let found = approaches(&rec);
+        assert_eq!(found.len(), 2, "{found:?}");
+        for (a, speed) in found.iter().zip([0.01, 0.03]) {
+            let low = a.z - 0.9;
+            assert!(
+                (low + speed * delay).abs() < 1e-4,
+                "read {:.3} mm off",
+                low * 1e3
+            );
+            assert!((a.skin_z(delay) - 0.9).abs() < 1e-4, "{a:?}");
+        }
+    }
+
+    #[test]
+    fn a_zero_that_wanders_below_its_level_for_a_while_hides_no_press() {
+        // The sensor's zero sits 0.2 N low for 0.3 s early in free air (coloured noise):
+        // that stretch is not the free-air level, so the presses still come from free air.
+        let mut rec = presses(0.9, 1000.0);
+        for (t, f) in rec.t.iter().zip(rec.f.iter_mut()) {
+            if (0.05..0.35).contains(t) {
+                f[2] -= 0.2;
+            }
+        }
+        let found = approaches(&rec);
+        assert_eq!(found.len(), 2, "{found:?}");
+        for a in found {
+            assert!(
+                (a.z - 0.9).abs() < 1e-4,
+                "approach at {} s: onset {}",
+                a.t,
+                a.z
+            );
+        }
     }
 
     #[test]
@@ -367,8 +499,13 @@ mod tests {
         }
         let onsets = approaches(&rec);
         assert_eq!(onsets.len(), 2);
-        for (t, z) in onsets {
-            assert!((z - 0.9).abs() < 5e-5, "approach at {t} s: onset {z}");
+        for a in onsets {
+            assert!(
+                (a.z - 0.9).abs() < 5e-5,
+                "approach at {} s: onset {}",
+                a.t,
+                a.z
+            );
         }
     }
 
@@ -430,7 +567,7 @@ mod tests {
         };
         let onsets = approaches(&rec);
         assert_eq!(onsets.len(), 1, "{onsets:?}");
-        assert!((onsets[0].1 - 0.9).abs() < 1e-4, "onset {}", onsets[0].1);
+        assert!((onsets[0].z - 0.9).abs() < 1e-4, "onset {}", onsets[0].z);
     }
 
     #[test]

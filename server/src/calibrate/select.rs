@@ -599,7 +599,8 @@ fn readjust(model: &mut Model, r: effects::Readjust, k_now: f64) {
     let per_contact = model.stiffness / k_now;
     model.damping = (model.damping + r.damping * per_contact).clamp(0.1, 500.0);
     model.stiffness = (model.stiffness * (1.0 + r.stiffness)).clamp(50.0, 30_000.0);
-    model.surface_offset = (model.surface_offset + r.offset_m).clamp(-0.02, 0.02);
+    let (lo, hi) = model.offset_bounds();
+    model.surface_offset = (model.surface_offset + r.offset_m).clamp(lo, hi);
 }
 
 /// One round of selection.
@@ -1049,7 +1050,13 @@ mod tests {
                         .map(|i| (index * n + i) as f64 / (12 * n) as f64)
                         .collect(),
                     xy: [0.5, 0.0],
-                    onsets: vec![5.0],
+                    onsets: vec![crate::calibrate::onset::Approach {
+                        t: 5.0,
+                        z: 0.0,
+                        speed: 0.01,
+                        xy: [0.5, 0.0],
+                    }],
+                    placed_by: None,
                     depth,
                     t,
                 }

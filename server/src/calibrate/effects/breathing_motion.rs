@@ -480,7 +480,7 @@ fn onset_mean(s: &Series, phase: &dyn Fn(f64) -> f64) -> (f64, f64) {
         return (0.0, 0.0);
     }
     let n = s.onsets.len() as f64;
-    let (sin, cos) = s.onsets.iter().fold((0.0, 0.0), |(a, b), &t| {
+    let (sin, cos) = s.onsets.iter().map(|a| a.t).fold((0.0, 0.0), |(a, b), t| {
         let (s, c) = phase(t).sin_cos();
         (a + s, b + c)
     });
@@ -742,6 +742,7 @@ mod tests {
             session: vec![0.0; n],
             xy: [0.0; 2],
             onsets: Vec::new(),
+            placed_by: None,
             t,
         }
     }

@@ -5,6 +5,7 @@
 use super::{Base, Readjust};
 use crate::calibrate::features::Series;
 use crate::calibrate::high_pass::high_pass;
+use crate::calibrate::onset;
 use rapier3d::na::{DMatrix, DVector};
 
 /// Least squares `X·β ≈ y` over the rows where `use_row`, by SVD of the column-scaled
@@ -293,6 +294,13 @@ pub(super) fn steady_stretches(s: &Series) -> Vec<std::ops::Range<usize>> {
     out
 }
 
+/// How much higher than the baseline placed it the skin under `s` stands behind a
+/// sensor lag `lag` \[s\]: its median onset's speed less `v_ref`, times the lag (0 for a
+/// recording whose surface no onset placed).
+fn onset_rise(s: &Series, v_ref: f64, lag: f64) -> f64 {
+    s.placed_by.map_or(0.0, |a| (a.speed - v_ref) * lag)
+}
+
 /// A sensor stage applied to a signal on a series' time base, at a grid value.
 pub(super) type Stage = dyn Fn(&Series, &[f64], f64) -> Vec<f64> + Sync;
 
@@ -303,19 +311,32 @@ pub(super) type Stage = dyn Fn(&Series, &[f64], f64) -> Vec<f64> + Sync;
 /// absorbed a lag is re-balanced *through* the sensor, not beside it (with the columns
 /// unfiltered, a 4.8 Hz filter on a soft, well-damped body fitted worse than nothing).
 /// No free gain: the grid value whose training SSE is least, and the prediction at it.
+///
+/// A stage that lags a ramp by `lag(g)` \[s\] also moved the skin the contact onsets read
+/// (see `onset_geometry`): a recording placed at its own onset, approached at speed `v`,
+/// stands `(v − v_ref)·lag` higher in a model with the stage (the fitted offset took
+/// `v_ref·lag`), `k` times that more force in contact, seen through the stage too.
 pub(super) fn fit_sensor_stage(
     series: &[Series],
     train: &[bool],
     base: Base,
     grid: &[f64],
-    stage: &Stage,
+    (stage, lag): (&Stage, &dyn Fn(f64) -> f64),
 ) -> (f64, Vec<Vec<f64>>, Readjust) {
     let mut best: Option<(f64, Solved, Vec<Vec<f64>>)> = None;
+    let v_ref = onset::reference_speed(series.iter().map(|s| s.onsets.as_slice()));
     for &g in grid {
         let shapes: Vec<Vec<f64>> = series
             .iter()
             .map(|s| {
-                let staged = stage(s, &s.predicted, g);
+                let rise = onset_rise(s, v_ref, lag(g));
+                let body: Vec<f64> = s
+                    .predicted
+                    .iter()
+                    .zip(contact_mask(s))
+                    .map(|(f, c)| f + base.k * rise * c)
+                    .collect();
+                let staged = stage(s, &body, g);
                 staged
                     .iter()
                     .zip(&s.predicted)

@@ -58,7 +58,8 @@ impl Effect for SensorDelay {
 /// up to 100 ms.
 fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature> {
     let grid: Vec<f64> = (1..=40).map(|k| k as f64 * 0.0025).collect();
-    let (tau, predicted, readjust) = fit_sensor_stage(series, train, base, &grid, &delayed);
+    let (tau, predicted, readjust) =
+        fit_sensor_stage(series, train, base, &grid, (&delayed, &|tau| tau));
     let mut params = Params::new();
     params.insert("delay_s".into(), tau.into());
     Some(Signature {

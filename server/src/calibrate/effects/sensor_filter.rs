@@ -41,7 +41,13 @@ impl Effect for SensorFilter {
 
     fn signature(&self, series: &[Series], train: &[bool], base: Base) -> Option<Signature> {
         let grid = log_grid(CUTOFF_HZ[0], CUTOFF_HZ[1], 35);
-        let (cutoff, predicted, readjust) = fit_sensor_stage(series, train, base, &grid, &low_pass);
+        let (cutoff, predicted, readjust) = fit_sensor_stage(
+            series,
+            train,
+            base,
+            &grid,
+            (&low_pass, &|hz| 1.0 / (2.0 * std::f64::consts::PI * hz)),
+        );
         // At the grid's top the filter does nothing the data can see; at its bottom it
         // stands for something slower than any sensor.
         if cutoff >= CUTOFF_HZ[1] * 0.999 || cutoff <= CUTOFF_HZ[0] * 1.001 {

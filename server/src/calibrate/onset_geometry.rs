@@ -1,0 +1,107 @@
+//! The skin's heights the contact onsets give (see [`super::onset`]), placed into a
+//! model's geometry: each site at the median onset of its recordings, each recording's
+//! path at its own, all relative to the median onset of every recording as read without
+//! a lag (the global surface offset's reference, where the baseline started it).
+//!
+//! The onsets are read through the model's sensor: a sensor that lags the body by `τ`
+//! (a delay, or a low-pass's `1/2πf_c` on a ramp) crosses the onset band `τ` late,
+//! `v·τ` lower on an approach at speed `v`. So when a candidate gives the model a lag,
+//! the heights are placed again with it ([`relag`]), each onset raised by its own `v·τ`
+//! less the common part the fitted global offset took already (`v_ref·τ`, see
+//! [`onset::reference_speed`]); the sites fitted rather than measured stay, and the
+//! signatures of a lag carry the same rise (`effects::linear::fit_sensor_stage`). On
+//! holdout-3 seed 13's delay, onsets read without the lag sat 0.3–1.0 mm low in
+//! proportion to the approach speed, the fitted global offset moved the whole skin to
+//! split the difference, and one slowly approached validation press stayed 1.3 N off
+//! with the true delay modelled.
+
+use super::geometry::Source;
+use super::onset::{self, Approach};
+use super::replay::{Model, Setup};
+
+/// The reference onset \[m, world z\]: the median of every recording's median onset,
+/// read without a lag.
+pub fn reference(setup: &Setup) -> Option<f64> {
+    let mut all: Vec<f64> = setup
+        .approaches
+        .iter()
+        .filter_map(|found| onset::median_onset(found, 0.0))
+        .map(|a| a.z)
+        .collect();
+    if all.is_empty() {
+        return None;
+    }
+    all.sort_by(f64::total_cmp);
+    Some(all[all.len() / 2])
+}
+
+/// Sites' heights and recordings' corrections from the onsets read with `lag` \[s\]
+/// (less its common part), relative to [`reference`], which it returns (`None`, and
+/// nothing placed, without onsets). The global surface offset is the caller's.
+pub fn place(setup: &Setup, model: &mut Model, lag: f64) -> Option<f64> {
+    let reference = reference(setup)?;
+    let common = lag * onset::reference_speed(setup.approaches.iter().map(Vec::as_slice));
+    let points: Vec<Option<Approach>> = setup
+        .approaches
+        .iter()
+        .map(|found| onset::median_onset(found, lag))
+        .collect();
+    let onsets: Vec<Option<f64>> = points
+        .iter()
+        .map(|p| p.map(|a| a.skin_z(lag) - common))
+        .collect();
+    let site_of = |i: usize| setup.recording_sites.get(i).map(String::as_str);
+    for site in &mut model.surface {
+        let mut here: Vec<f64> = onsets
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| site_of(*i) == Some(site.site.as_str()))
+            .filter_map(|(_, z)| *z)
+            .collect();
+        if here.is_empty() {
+            continue;
+        }
+        here.sort_by(f64::total_cmp);
+        site.height_m = here[here.len() / 2] - reference;
+        site.source = Source::Onset;
+    }
+    for path in &mut model.paths {
+        let site =
+            site_of(path.recording).and_then(|name| model.surface.iter().find(|s| s.site == name));
+        if let (Some(Some(a)), Some(site)) = (points.get(path.recording), site)
+            && site.source == Source::Onset
+        {
+            path.height_m = a.skin_z(lag) - common - reference - site.height_m;
+            path.height_source = Source::Onset;
+            path.anchor_m = (a.xy[0] - path.centre[0]) * path.along[0]
+                + (a.xy[1] - path.centre[1]) * path.along[1];
+        }
+    }
+    // A later segment without an onset of its own (it began in contact, after the
+    // logger's pause) stands on its file's first segment's skin.
+    for k in 0..model.paths.len() {
+        let path = &model.paths[k];
+        if path.height_source == Source::Onset
+            && points.get(path.recording).is_some_and(Option::is_some)
+        {
+            continue;
+        }
+        let Some(leader) = path
+            .follows
+            .and_then(|l| model.paths.iter().find(|p| p.recording == l))
+        else {
+            continue;
+        };
+        let (height, anchor, source) = (leader.height_m, leader.anchor_m, leader.height_source);
+        let path = &mut model.paths[k];
+        path.height_m = height;
+        path.anchor_m = anchor;
+        path.height_source = source;
+    }
+    Some(reference)
+}
+
+/// Place the onset heights again for the model's sensor lag.
+pub fn relag(setup: &Setup, model: &mut Model) {
+    place(setup, model, model.sensor_lag_s());
+}
