@@ -478,6 +478,7 @@ pub fn fit_model(
 }
 
 /// Turn accepted signatures into simulator elements of `model`.
+///
 /// A sensor lag the effects give or change re-reads the contact onsets (see
 /// [`onset_geometry`]).
 pub fn apply_effects(model: &mut Model, accepted: &[Accepted], setup: &Setup) {

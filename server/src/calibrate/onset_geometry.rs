@@ -105,3 +105,56 @@ pub fn place(setup: &Setup, model: &mut Model, lag: f64) -> Option<f64> {
 pub fn relag(setup: &Setup, model: &mut Model) {
     place(setup, model, model.sensor_lag_s());
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibrate::geometry::SiteSurface;
+    use crate::calibrate::session::SessionClock;
+    use crate::sim::torso::TorsoParams;
+
+    fn approach(z: f64, speed: f64) -> Vec<Approach> {
+        vec![Approach {
+            t: 1.0,
+            z,
+            speed,
+            xy: [0.0, 0.0],
+        }]
+    }
+
+    #[test]
+    fn a_lag_raises_each_site_by_its_onsets_speed_less_the_common_part() {
+        // Site a approached at 10 mm/s, site b at 30 and 20 mm/s; the median speed,
+        // 20 mm/s, is the offset's.
+        let setup = Setup {
+            torso: TorsoParams::default(),
+            nominal_surface_z: 0.1,
+            center_xy: [0.0, 0.0],
+            sites: Vec::new(),
+            recording_sites: vec!["a".into(), "b".into(), "b".into()],
+            session: SessionClock::default(),
+            approaches: vec![
+                approach(0.1, 0.01),
+                approach(0.099, 0.03),
+                approach(0.0995, 0.02),
+            ],
+        };
+        let mut model = Model::baseline(1.0, 1.0, 0.0);
+        model.surface = ["a", "b"]
+            .map(|site| SiteSurface {
+                site: site.into(),
+                origin: [0.0, 0.0],
+                height_m: 0.0,
+                source: Source::Unfitted,
+            })
+            .to_vec();
+        let height = |m: &Model, site: &str| m.surface_at(site).unwrap().height_m;
+        assert_eq!(place(&setup, &mut model, 0.0), Some(0.0995));
+        assert!((height(&model, "a") - 0.0005).abs() < 1e-12);
+        model.delay = 0.02;
+        relag(&setup, &mut model);
+        // a: 0.1 + (0.01 − 0.02)·0.02; b: the upper of 0.099 + 0.0002 and 0.0995.
+        assert!((height(&model, "a") - 0.0003).abs() < 1e-12, "{model:?}");
+        assert!(height(&model, "b").abs() < 1e-12);
+    }
+}
