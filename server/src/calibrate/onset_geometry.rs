@@ -36,7 +36,7 @@ pub fn reference(setup: &Setup) -> Option<f64> {
 }
 
 /// Sites' heights and recordings' corrections from the onsets read with `lag` \[s\]
-/// (less its common part), relative to [`reference`], which it returns (`None`, and
+/// (less its common part), relative to [`reference()`], which it returns (`None`, and
 /// nothing placed, without onsets). The global surface offset is the caller's.
 pub fn place(setup: &Setup, model: &mut Model, lag: f64) -> Option<f64> {
     let reference = reference(setup)?;
