@@ -493,6 +493,18 @@ pub fn apply_effects(model: &mut Model, accepted: &[Accepted], setup: &Setup) {
     }
 }
 
+/// Take the effect `name` out of `model` again (its fields as `baseline` has them).
+/// A sensor lag it took away re-reads the contact onsets, as [`apply_effects`] does.
+pub fn remove_effect(model: &mut Model, name: &str, baseline: &Model, setup: &Setup) {
+    let lag = model.sensor_lag_s();
+    effects::named(name)
+        .expect("named effects are catalogue effects")
+        .remove(model, baseline);
+    if model.sensor_lag_s() != lag {
+        onset_geometry::relag(setup, model);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -4,7 +4,9 @@
 //! whole model refitted by replay, and the refitted simulator must beat the previous
 //! one on validation by the round's threshold (each further effect needs more). A
 //! close call between signatures, or a near miss when nothing passes, is decided in
-//! the simulator. Then the verdict: is what remains noise?
+//! the simulator. Then a backward step: each effect named before the last must still
+//! earn its place beside the later ones (`prune`). Then the verdict: is what remains
+//! noise?
 
 use crate::recordings::Dataset;
 
@@ -12,7 +14,7 @@ use super::effects;
 use super::features::{Series, rmse};
 use super::fit::Effort;
 use super::high_pass::high_pass;
-use super::model::{FitDiagnostics, Free, Geometry, apply_effects, fit_model};
+use super::model::{FitDiagnostics, Free, Geometry, apply_effects, fit_model, remove_effect};
 use super::replay::{self, Model, Setup, replay_all};
 use super::split::Split;
 use super::weighing::{self, Judging, Weighing};
@@ -138,11 +140,21 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
         // No signature passed: the best near miss gets a trial in the simulator, where
         // it must explain the share of the excess the signature could not show.
         let second_chance = round.passed.is_empty();
-        let found: Vec<decision::Accepted> = if second_chance {
-            round.near.into_iter().take(1).collect()
+        let (mut found, near): (Vec<decision::Accepted>, Vec<decision::Accepted>) = if second_chance
+        {
+            let mut near = round.near.into_iter();
+            (near.next().into_iter().collect(), near.collect())
         } else {
-            round.passed
+            (round.passed, round.near)
         };
+        // A rival of the winner whose signature nearly passed is a contender too: the
+        // linearisation tells a delay from a filter poorly (holdout-3's second-order
+        // filter, seed 13: the delay's signature explained 37 % of the excess, the
+        // filter's 25 %, and only the delay was modelled).
+        if let Some(first) = found.first() {
+            let rivals = effects::named(first.name).map_or(&[][..], |e| e.rivals());
+            found.extend(near.into_iter().filter(|c| rivals.contains(&c.name)));
+        }
         let Some(first) = found.first() else {
             break;
         };
@@ -158,7 +170,9 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
             .iter()
             .enumerate()
             .filter(|(k, c)| {
-                (*k < 2 && c.gain >= CLOSE_CALL * first.gain) || rivals.contains(&c.name)
+                // (The winner itself always: its gain over all samples may be below
+                // zero, weighed in free air.)
+                *k == 0 || (*k < 2 && c.gain >= CLOSE_CALL * first.gain) || rivals.contains(&c.name)
             })
             .map(|(_, c)| c)
             .filter(|c| {
@@ -414,6 +428,32 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
             });
         }
     }
+    // The backward step: each effect named before the last must still earn its place
+    // beside the ones named after it.
+    let mut state = Calibrated {
+        model: calibrated,
+        fit: calibrated_fit,
+        series: current,
+        predictions: current_predictions,
+        accepted,
+    };
+    let context = Context {
+        setup,
+        dataset,
+        split,
+        baseline: base,
+        k_per_unit,
+        train: &is_train,
+        validation: &is_validation,
+    };
+    rejected.extend(prune(&context, &mut state));
+    let Calibrated {
+        model: calibrated,
+        fit: calibrated_fit,
+        series: current,
+        predictions: current_predictions,
+        accepted,
+    } = state;
     let closest = rejected
         .iter()
         .filter_map(|r| r.explained.map(|e| (r.name, e)))
@@ -438,6 +478,140 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
         verdict,
         calibrated_fz,
     }
+}
+
+/// The simulator as calibrated so far.
+struct Calibrated {
+    model: Model,
+    fit: FitDiagnostics,
+    /// Every recording with the model's prediction.
+    series: Vec<Series>,
+    predictions: Vec<replay::Prediction>,
+    /// The effects named, in the order they were.
+    accepted: Vec<decision::Accepted>,
+}
+
+/// What a refit and its judging need.
+struct Context<'a> {
+    setup: &'a Setup,
+    dataset: &'a Dataset,
+    split: &'a Split,
+    /// The baseline (the model before any effect).
+    baseline: &'a Model,
+    k_per_unit: f64,
+    train: &'a [bool],
+    validation: &'a [bool],
+}
+
+/// The backward step of stepwise selection. Each effect named before the last is taken
+/// out of the simulator again and the rest refitted without it; it stays where the
+/// simulator with it beats the one without on validation by the bar it was named at,
+/// judged as its trial was (where it is weighed without making the whole worse, or over
+/// all samples). Otherwise it is taken out, with its reason among the rejected.
+///
+/// A forward round names the best candidate against the simulator as it stood, and an
+/// effect named later may explain what an earlier one only mimicked: on holdout-3's
+/// first-order filter, seed 14, a site heterogeneity of ±7 % won the first round
+/// (validation 0.852 → 0.666 N), where the filter, whose lag shows differently in
+/// presses and chirps, was modelled only in the second.
+fn prune(context: &Context<'_>, state: &mut Calibrated) -> Vec<decision::Rejected> {
+    let Context {
+        setup,
+        dataset,
+        split,
+        baseline,
+        k_per_unit,
+        train,
+        validation,
+    } = *context;
+    let mut bars: Vec<f64> = (0..state.accepted.len())
+        .map(|j| FIRST_GAIN * ESCALATION.powi(j as i32))
+        .collect();
+    let mut removed = Vec::new();
+    let mut j = 0;
+    while j + 1 < state.accepted.len() {
+        let name = state.accepted[j].name;
+        let entry = effects::named(name).expect("named from the catalogue");
+        let mut model = state.model.clone();
+        remove_effect(&mut model, name, baseline, setup);
+        let names: Vec<&str> = state
+            .accepted
+            .iter()
+            .map(|a| a.name)
+            .filter(|n| *n != name)
+            .collect();
+        let (model, diagnostics, predictions) = refit_in_simulator(
+            setup,
+            dataset,
+            split,
+            model,
+            (&names, &names, Free::PER_SITE),
+            k_per_unit,
+        );
+        let without = series_of(dataset, setup, &predictions);
+        let judging = Judging {
+            train,
+            validation,
+            breathing_modelled: model.breathing.is_some(),
+        };
+        let region = judging.weighing(&without, entry.judged_in());
+        let channel = entry.channel();
+        let error = |p: &[replay::Prediction], w: Option<&Weighing>| {
+            rmse_against(dataset, &split.validation, p, channel, w)
+        };
+        let (before, after) = (error(&predictions, None), error(&state.predictions, None));
+        let (gate_before, gate_after) = match &region {
+            Some(w) => (
+                error(&predictions, Some(w)),
+                error(&state.predictions, Some(w)),
+            ),
+            None => (before, after),
+        };
+        let bar = bars[j];
+        let weighed_in = region.as_ref().map(Weighing::region);
+        let in_region = weighed_in.is_some()
+            && after <= before
+            && relative_drop(gate_before, gate_after) >= bar;
+        let earns = in_region || relative_drop(before, after) >= bar;
+        let others = names.join(", ");
+        tracing::debug!(
+            "backward step: without {name} beside {others}, validation {after:.4} → {before:.4} N{}; needs {:.1} % lower with it: {}",
+            if weighed_in.is_some() {
+                format!(
+                    ",{} {gate_after:.4} → {gate_before:.4} N",
+                    weighing::words(weighed_in)
+                )
+            } else {
+                String::new()
+            },
+            100.0 * bar,
+            if earns { "kept" } else { "taken out" }
+        );
+        if earns {
+            j += 1;
+            continue;
+        }
+        removed.push(decision::Rejected {
+            name,
+            why: format!(
+                "named in round {}, but beside {others} it no longer earned its place: with it the validation RMSE{} was {:.3} N, without it {:.3} N ({:.1} % lower with it; needs {:.1} %)",
+                j + 1,
+                weighing::words(weighed_in),
+                gate_after,
+                gate_before,
+                100.0 * relative_drop(gate_before, gate_after),
+                100.0 * bar
+            ),
+            explained: None,
+        });
+        state.model = model;
+        state.fit = diagnostics;
+        state.series = without;
+        state.predictions = predictions;
+        state.accepted.remove(j);
+        bars.remove(j);
+    }
+    removed
 }
 
 /// `model` with the effects `names` refitted by replay on the training recordings
@@ -800,8 +974,16 @@ fn select_effects(
             100.0 * explained,
             sig.params
         );
-        // Weighed in a region, it must not make the whole worse either.
-        let whole_ok = region.is_none() || (whole.gain_v() >= 0.0 && whole.gain_t() >= 0.0);
+        // Weighed in a region, it must not make the whole worse either — except in free
+        // air: there the signature reads the sensor alone, but over all samples it is a
+        // linearisation that cannot move each site's surface, and in contact a sensor
+        // offset trades with the surface height (k·Δz). Its trial in the simulator,
+        // which refits the surfaces, must then not make the whole worse. (Holdout-3's
+        // bias drift, seed 14: the signature put the drift within 1 % of the truth and
+        // explained 95 % of the free-air excess, but made the whole validation 31 %
+        // worse, so it never reached the simulator.)
+        let whole_ok = matches!(region, None | Some(effects::Region::FreeAir))
+            || (whole.gain_v() >= 0.0 && whole.gain_t() >= 0.0);
         let gains = gate.gain_v() >= threshold && gate.gain_t() >= threshold / 2.0 && whole_ok;
         let scored = Scored {
             sig,

@@ -49,6 +49,11 @@ impl Effect for BiasDrift {
         model.bias_drift_n = number(params, "total_n");
     }
 
+    fn remove(&self, model: &mut Model, baseline: &Model) {
+        model.bias = baseline.bias;
+        model.bias_drift_n = baseline.bias_drift_n;
+    }
+
     fn parameters(&self, model: &Model) -> Vec<Parameter> {
         vec![
             Parameter::linear("fz_n", model.bias, (-20.0, 20.0, 0.01)),

@@ -67,6 +67,15 @@ impl Effect for BreathingMotion {
     }
 
     /// The centre rise and the profile (phases and rates stay the signature's).
+    fn remove(&self, model: &mut Model, baseline: &Model) {
+        model.breathing = baseline.breathing;
+        model.breathing_phase = baseline.breathing_phase.clone();
+        model.breathing_freq = baseline.breathing_freq.clone();
+        model.breathing_edge_rise = baseline.breathing_edge_rise;
+        model.breathing_rate_slope = baseline.breathing_rate_slope.clone();
+        model.breathing_phase_track = baseline.breathing_phase_track.clone();
+    }
+
     fn parameters(&self, model: &Model) -> Vec<Parameter> {
         let (_, rise) = model.breathing.unwrap_or((0.25, 0.0));
         vec![

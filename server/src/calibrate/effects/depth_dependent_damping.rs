@@ -63,6 +63,10 @@ impl Effect for DepthDependentDamping {
 
     /// The ratio (the exponent stays the signature's: with the ratio it is poorly
     /// determined by presses of a few depths).
+    fn remove(&self, model: &mut Model, baseline: &Model) {
+        model.depth_damping = baseline.depth_damping.clone();
+    }
+
     fn parameters(&self, model: &Model) -> Vec<Parameter> {
         let ratio = model
             .depth_damping

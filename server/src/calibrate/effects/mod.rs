@@ -182,6 +182,10 @@ pub trait Effect: Sync {
     /// Put the simulator element into `model`, from the signature's parameters.
     fn apply(&self, params: &Params, model: &mut Model, setup: &Setup);
 
+    /// Take the element out of `model` again: its fields as `baseline` (the model
+    /// before any effect) has them.
+    fn remove(&self, model: &mut Model, baseline: &Model);
+
     /// The element's parameters for the refit, read from `model`.
     fn parameters(&self, model: &Model) -> Vec<Parameter>;
 
@@ -278,4 +282,33 @@ pub struct Signature {
     pub predicted: Vec<Vec<f64>>,
     /// The baseline's readjustment fitted with it.
     pub readjust: Readjust,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// What a refit moves comes out again with `remove`: each effect's parameters, moved
+    /// off the baseline's values by `set`, are the baseline's again.
+    #[test]
+    fn removing_an_effect_restores_what_its_parameters_moved() {
+        let baseline = Model::baseline(2000.0, 40.0, 0.001);
+        let mut moved = 0;
+        for effect in CATALOGUE {
+            let mut model = baseline.clone();
+            for p in effect.parameters(&baseline) {
+                let (lo, hi, _) = p.range;
+                let inside = lo + 0.37 * (hi - lo);
+                let value = if p.log { inside.exp() } else { inside };
+                effect.set(&mut model, &p.key, value);
+            }
+            if model != baseline {
+                moved += 1;
+            }
+            effect.remove(&mut model, &baseline);
+            assert_eq!(model, baseline, "{} left a field moved", effect.name());
+        }
+        // The test says something only where `set` moved the model.
+        assert!(moved >= 8, "only {moved} effects moved the model");
+    }
 }

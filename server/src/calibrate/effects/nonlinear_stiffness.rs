@@ -49,6 +49,12 @@ impl Effect for NonlinearStiffness {
         }
     }
 
+    fn remove(&self, model: &mut Model, baseline: &Model) {
+        model.exponent = baseline.exponent;
+        model.stiffening_depth_m = baseline.stiffening_depth_m;
+        model.deepest_press_m = baseline.deepest_press_m;
+    }
+
     fn parameters(&self, model: &Model) -> Vec<Parameter> {
         match model.stiffening_depth_m {
             Some(d) => vec![Parameter::logarithmic(

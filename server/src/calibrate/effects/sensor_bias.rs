@@ -29,6 +29,10 @@ impl Effect for SensorBias {
         model.bias = number(params, "fz_n");
     }
 
+    fn remove(&self, model: &mut Model, baseline: &Model) {
+        model.bias = baseline.bias;
+    }
+
     fn parameters(&self, model: &Model) -> Vec<Parameter> {
         vec![Parameter::linear("fz_n", model.bias, (-20.0, 20.0, 0.01))]
     }

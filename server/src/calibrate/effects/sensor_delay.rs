@@ -34,6 +34,10 @@ impl Effect for SensorDelay {
         model.delay = number(params, "delay_s");
     }
 
+    fn remove(&self, model: &mut Model, baseline: &Model) {
+        model.delay = baseline.delay;
+    }
+
     fn parameters(&self, model: &Model) -> Vec<Parameter> {
         vec![Parameter::linear("delay_s", model.delay, (0.0, 0.5, 0.002))]
     }

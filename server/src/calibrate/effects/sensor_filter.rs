@@ -67,6 +67,10 @@ impl Effect for SensorFilter {
         model.filter_cutoff_hz = number(params, "cutoff_hz");
     }
 
+    fn remove(&self, model: &mut Model, baseline: &Model) {
+        model.filter_cutoff_hz = baseline.filter_cutoff_hz;
+    }
+
     fn parameters(&self, model: &Model) -> Vec<Parameter> {
         vec![Parameter::logarithmic(
             "cutoff_hz",

@@ -49,6 +49,10 @@ impl Effect for SiteHeterogeneity {
         }
     }
 
+    fn remove(&self, model: &mut Model, baseline: &Model) {
+        model.site_scale = baseline.site_scale.clone();
+    }
+
     fn parameters(&self, model: &Model) -> Vec<Parameter> {
         // The reference site (the signature's median, at exactly 1) is the baseline's
         // stiffness: fitting it too would leave the refit a direction that changes

@@ -138,6 +138,12 @@ impl Effect for SlidingFriction {
         ];
     }
 
+    fn remove(&self, model: &mut Model, baseline: &Model) {
+        model.friction = baseline.friction;
+        model.friction_viscous = baseline.friction_viscous;
+        model.lateral_share = baseline.lateral_share;
+    }
+
     fn parameters(&self, model: &Model) -> Vec<Parameter> {
         vec![
             Parameter::linear("mu", model.friction, (0.0, 2.0, 0.005)),

@@ -30,6 +30,10 @@ impl Effect for TissueInertia {
         model.moving_mass = number(params, "mass_kg");
     }
 
+    fn remove(&self, model: &mut Model, baseline: &Model) {
+        model.moving_mass = baseline.moving_mass;
+    }
+
     fn parameters(&self, model: &Model) -> Vec<Parameter> {
         vec![Parameter::linear(
             "mass_kg",

@@ -62,6 +62,11 @@ impl Effect for ViscoelasticRelaxation {
         });
     }
 
+    fn remove(&self, model: &mut Model, baseline: &Model) {
+        model.relaxation = baseline.relaxation.clone();
+        model.second_relaxation = baseline.second_relaxation.clone();
+    }
+
     fn parameters(&self, model: &Model) -> Vec<Parameter> {
         let r = branch(model);
         // The signature's range: tissue relaxes over 0.1 s to minutes; a faster
