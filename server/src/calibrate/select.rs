@@ -510,10 +510,11 @@ struct Context<'a> {
 /// all samples). Otherwise it is taken out, with its reason among the rejected.
 ///
 /// A forward round names the best candidate against the simulator as it stood, and an
-/// effect named later may explain what an earlier one only mimicked: on holdout-3's
-/// first-order filter, seed 14, a site heterogeneity of ±7 % won the first round
-/// (validation 0.852 → 0.666 N), where the filter, whose lag shows differently in
-/// presses and chirps, was modelled only in the second.
+/// effect named later may explain what an earlier one only mimicked. Written for
+/// holdout-3's first-order filter, seed 14, where spurious site scales won the first
+/// round (validation 0.852 → 0.666 N) and the filter the second; there it keeps them
+/// (validation 0.449 N with them, 0.651 N without): the scale that harms the test
+/// recording is a site no validation recording has.
 fn prune(context: &Context<'_>, state: &mut Calibrated) -> Vec<decision::Rejected> {
     let Context {
         setup,
