@@ -119,6 +119,7 @@ pub fn fit(setup: &Setup, dataset: &Dataset, split: &Split) -> Baseline {
         offset: true,
         geometry: Geometry::Fixed,
         above_hz: None,
+        free_air: false,
     };
     let (model, _) = fit_model(
         setup,
@@ -185,6 +186,7 @@ pub fn surface_elsewhere(
         offset: false,
         geometry: Geometry::Undetermined,
         above_hz: None,
+        free_air: false,
     };
     let (model, _) = fit_model(
         setup,

@@ -18,7 +18,7 @@ pub enum Channel {
 }
 
 /// One recording's samples, aligned.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct Series {
     /// Recording index in the dataset.
     pub index: usize,
@@ -88,6 +88,12 @@ pub struct Series {
 /// the surface errors and breaths the baseline leaves, and at the probe's lift-off speeds
 /// (≥ 5 mm/s) a sensor filter's or delay's tail has died out before it is reached.
 pub const FREE_AIR_CLEARANCE_M: f64 = 0.004;
+
+/// Whether a replayed sample is in free air: out of contact and clear of the skin by
+/// [`FREE_AIR_CLEARANCE_M`] (`depth` below the surface, negative above it).
+pub fn is_free_air(contact: bool, depth: f64) -> bool {
+    !contact && depth < -FREE_AIR_CLEARANCE_M
+}
 
 /// Width of the Gaussian weights of the line whose slope is [`Series::vz_held`] \[s\].
 pub const HOLD_RATE_S: f64 = 0.05;
@@ -185,7 +191,7 @@ impl Series {
                 .contact
                 .iter()
                 .zip(&prediction.depth)
-                .map(|(&c, &d)| !c && d < -FREE_AIR_CLEARANCE_M)
+                .map(|(&c, &d)| is_free_air(c, d))
                 .collect(),
             depth: prediction.depth.clone(),
             along_path,

@@ -254,7 +254,7 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
             "unexplained": o.verdict.unexplained,
             "ratio_to_noise": o.verdict.ratio_to_noise,
             "autocorrelation_50ms": o.verdict.autocorrelation_50ms,
-            "thresholds": {"ratio": unexplained::RATIO, "autocorrelation": unexplained::AUTOCORRELATION},
+            "thresholds": {"ratio": unexplained::RATIO, "autocorrelation": unexplained::AUTOCORRELATION, "ratio_alone": unexplained::SIZE_ALONE},
         },
         "unexplained": o.verdict.spans,
         "thesis_method": o.thesis_method,
@@ -580,10 +580,11 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
     if o.verdict.unexplained {
         let _ = writeln!(
             s,
-            "The calibrated held-out residual is {:.1}× the noise floor (threshold {}) and correlated {:.2} at 50 ms (threshold {}): not noise. Where it lives:\n",
+            "The calibrated held-out residual is {:.1}× the noise floor and correlated {:.2} at 50 ms: not noise (more than {}× the floor, or more than {}× and correlated above {}). Where it lives:\n",
             o.verdict.ratio_to_noise,
-            unexplained::RATIO,
             o.verdict.autocorrelation_50ms,
+            unexplained::SIZE_ALONE,
+            unexplained::RATIO,
             unexplained::AUTOCORRELATION
         );
         for span in &o.verdict.spans {

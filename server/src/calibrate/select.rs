@@ -109,6 +109,15 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
     let mut failures = decision::Failures::default();
     let mut rejected: Vec<decision::Rejected> = Vec::new();
     let mut threshold = FIRST_GAIN;
+    // Whether the recordings have free air enough to read a sensor's own parameters
+    // there (see `refit_in_simulator`), as the baseline places the skin.
+    let in_free_air = Judging {
+        train: &is_train,
+        validation: &is_validation,
+        breathing_modelled: false,
+    }
+    .weighing(series, effects::Region::FreeAir)
+    .is_some();
     for _attempt in 0..6 {
         let k_now = calibrated.stiffness * k_per_unit;
         let mut skip = failures.skipped().to_vec();
@@ -131,6 +140,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                 center_xy: setup.center_xy,
                 half_size: [setup.torso.size[0] / 2.0, setup.torso.size[1] / 2.0],
                 fit_above_hz: None,
+                fit_free_air: false,
             },
             noise,
             &skip,
@@ -210,6 +220,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                         model.clone(),
                         (fitted, &reread, free),
                         k_per_unit,
+                        in_free_air,
                     )
                 };
                 // `held`: the refit kept the parameters other than the candidate's and
@@ -238,6 +249,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                                 offset: false,
                                 geometry: Geometry::Fixed,
                                 above_hz: Some(hz),
+                                free_air: false,
                             },
                         );
                         let whole = refit(&names, Free::PER_SITE);
@@ -369,7 +381,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                 dataset,
                 split,
                 threshold * ESCALATION,
-                k_per_unit,
+                (k_per_unit, in_free_air),
             );
             // Named: from now on its states are read again after every refit.
             reread_states(
@@ -445,6 +457,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
         k_per_unit,
         train: &is_train,
         validation: &is_validation,
+        in_free_air,
     };
     rejected.extend(prune(&context, &mut state));
     let Calibrated {
@@ -501,6 +514,8 @@ struct Context<'a> {
     k_per_unit: f64,
     train: &'a [bool],
     validation: &'a [bool],
+    /// Free air enough to read a sensor's own parameters there.
+    in_free_air: bool,
 }
 
 /// The backward step of stepwise selection. Each effect named before the last is taken
@@ -524,6 +539,7 @@ fn prune(context: &Context<'_>, state: &mut Calibrated) -> Vec<decision::Rejecte
         k_per_unit,
         train,
         validation,
+        in_free_air,
     } = *context;
     let mut bars: Vec<f64> = (0..state.accepted.len())
         .map(|j| FIRST_GAIN * ESCALATION.powi(j as i32))
@@ -548,6 +564,7 @@ fn prune(context: &Context<'_>, state: &mut Calibrated) -> Vec<decision::Rejecte
             model,
             (&names, &names, Free::PER_SITE),
             k_per_unit,
+            in_free_air,
         );
         let without = series_of(dataset, setup, &predictions);
         let judging = Judging {
@@ -620,6 +637,11 @@ fn prune(context: &Context<'_>, state: &mut Calibrated) -> Vec<decision::Rejecte
 /// could not determine fitted on the held-out ones, the per-recording nuisance states of
 /// the effects `reread` read again from its residual (see [`reread_states`]), and its
 /// predictions of every recording.
+///
+/// In a whole refit (the training geometry free) the effects judged in free air are
+/// fitted first, on the free-air samples alone ([`Free::FREE_AIR`]), and held there
+/// while the rest is refitted, where the training recordings have free air enough
+/// (`in_free_air`; see [`Judging::weighing`]).
 fn refit_in_simulator(
     setup: &Setup,
     dataset: &Dataset,
@@ -627,19 +649,40 @@ fn refit_in_simulator(
     model: Model,
     (names, reread, free): (&[&str], &[&str], Free),
     k_per_unit: f64,
+    in_free_air: bool,
 ) -> (Model, FitDiagnostics, Vec<replay::Prediction>) {
-    let (refitted, diagnostics) = fit_model(
-        setup,
-        dataset,
-        &split.train,
-        model,
-        names,
-        free,
-        Effort {
-            iterations: EFFECT_ITERATIONS,
-            intervals: true,
-        },
-    );
+    let effort = Effort {
+        iterations: EFFECT_ITERATIONS,
+        intervals: true,
+    };
+    let read_in_free_air = |name: &&str| {
+        effects::named(name).is_some_and(|e| e.judged_in() == effects::Region::FreeAir)
+    };
+    let (in_air, rest): (Vec<&str>, Vec<&str>) =
+        if in_free_air && free.geometry == Geometry::Training {
+            names.iter().copied().partition(read_in_free_air)
+        } else {
+            (Vec::new(), names.to_vec())
+        };
+    let (model, air) = if in_air.is_empty() {
+        (model, None)
+    } else {
+        let (model, fit) = fit_model(
+            setup,
+            dataset,
+            &split.train,
+            model,
+            &in_air,
+            Free::FREE_AIR,
+            effort,
+        );
+        (model, Some(fit))
+    };
+    let (refitted, mut diagnostics) =
+        fit_model(setup, dataset, &split.train, model, &rest, free, effort);
+    if let Some(air) = air {
+        diagnostics.merge(air);
+    }
     let (mut model, _) = baseline::surface_elsewhere(setup, dataset, split, refitted);
     let all: Vec<usize> = (0..dataset.recordings.len()).collect();
     let mut predictions = replay_all(setup, &model, &dataset.recordings, &all);
@@ -722,7 +765,7 @@ fn try_richer(
     dataset: &Dataset,
     split: &Split,
     needed: f64,
-    k_per_unit: f64,
+    (k_per_unit, in_free_air): (f64, bool),
 ) {
     let Some(entry) = effects::named(trial.effect.name) else {
         return;
@@ -743,6 +786,7 @@ fn try_richer(
         model,
         (&names, &reread, Free::PER_SITE),
         k_per_unit,
+        in_free_air,
     );
     let channel = entry.channel();
     let train_before = rmse_against(dataset, &split.train, &trial.predictions, channel, None);
@@ -881,6 +925,9 @@ fn select_effects(
         // Weighed in a band, fitted there too (and the reference with it).
         let base = effects::Base {
             fit_above_hz: weighing.as_ref().and_then(Weighing::above_hz),
+            fit_free_air: weighing
+                .as_ref()
+                .is_some_and(|w| w.region() == effects::Region::FreeAir),
             ..base
         };
         let null = match channel {
@@ -1314,6 +1361,7 @@ mod tests {
                 center_xy: [0.5, 0.0],
                 half_size: [0.15, 0.1],
                 fit_above_hz: None,
+                fit_free_air: false,
             },
             0.1,
             &[],
@@ -1342,6 +1390,48 @@ mod tests {
                 "{name} passed without an offset"
             );
         }
+    }
+
+    /// A drifting offset is read in free air alone: beside a model-form error in contact
+    /// that grows over the session (here 0.1 N more each recording), a fit on every
+    /// sample lends the drift part of it; on free air the drift comes out as drawn.
+    #[test]
+    fn a_drifting_offset_is_read_in_free_air_alone() {
+        let (start, total) = (0.3, 1.2);
+        let mut series = presses(start);
+        for s in &mut series {
+            let growing = 0.1 * s.index as f64;
+            for i in 0..s.len() {
+                let drift = total * s.session[i] + if s.contact[i] { growing } else { 0.0 };
+                s.measured[i] += drift;
+                s.residual[i] += drift;
+            }
+        }
+        let train: Vec<bool> = (0..series.len()).map(|k| k % 3 != 2).collect();
+        let drift = effects::named("bias_drift").expect("in the catalogue");
+        let read = |fit_free_air: bool| {
+            let base = effects::Base {
+                k: 2000.0,
+                c: 20.0,
+                center_xy: [0.5, 0.0],
+                half_size: [0.15, 0.1],
+                fit_above_hz: None,
+                fit_free_air,
+            };
+            let sig = drift.signature(&series, &train, base).expect("a signature");
+            [sig.params["fz_n"].as_f64(), sig.params["total_n"].as_f64()]
+                .map(Option::unwrap_or_default)
+        };
+        let [b0, change] = read(true);
+        assert!(
+            (b0 - start).abs() < 0.03 && (change - total).abs() < 0.05,
+            "in free air: {b0:.3} N and {change:.3} N for {start} and {total}"
+        );
+        let [_, everywhere] = read(false);
+        assert!(
+            (everywhere - total).abs() > 0.3,
+            "on every sample {everywhere:.3} N: the contact error does not lend the drift anything, and the test tests nothing"
+        );
     }
 
     /// Depth-dependent damping adds ≈ 4 % beside a breath's misfit eleven times its

@@ -496,33 +496,6 @@ fn onset_mean(s: &Series, phase: &dyn Fn(f64) -> f64) -> (f64, f64) {
     (sin / n, cos / n)
 }
 
-/// A slide's path shape beside the breath: its position along the path and its square,
-/// in contact (none for a recording that does not slide). The baseline fitted the
-/// slide's slope and curvature on a residual that carried the breath (for a held-out
-/// slide, on itself), and a probe sliding out and back turns a path's shape into a
-/// slow oscillation in time; refitted beside the breath, the path gives back what it
-/// took of it, as the simulator refits it once breathing is modelled: on a slide the
-/// signature predicts the breath less its path part.
-fn path_columns(s: &Series) -> Vec<Vec<f64>> {
-    if s.along_path.iter().all(|v| *v == 0.0) {
-        return Vec::new();
-    }
-    vec![
-        s.along_path.clone(),
-        s.along_path.iter().map(|v| v * v).collect(),
-    ]
-}
-
-/// The path shape's least-squares part of `signal` (see [`path_columns`]; 0 for a
-/// recording that does not slide): what a path fit would take of it.
-fn path_part(s: &Series, signal: &[f64]) -> Vec<f64> {
-    let columns = path_columns(s);
-    let beta = least_squares(&columns, signal, &s.contact);
-    (0..s.len())
-        .map(|i| columns.iter().zip(&beta).map(|(c, b)| c[i] * b).sum())
-        .collect()
-}
-
 /// Fit `a·sin φ + b·cos φ` (φ = `phase(t)`) to the in-contact part of `residual`
 /// (one series), less its value at the contact onsets (see [`onset_mean`]): (SSE, a, b,
 /// prediction).

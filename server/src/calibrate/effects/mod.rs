@@ -242,6 +242,12 @@ pub struct Base {
     /// weighed there (`weighing`), so that a misfit below the band does not choose its
     /// form. `None`: on the whole residual.
     pub fit_above_hz: Option<f64>,
+    /// Fit the signature's own columns on the free-air samples alone, then the
+    /// baseline's readjustment on every sample with them held: for an effect weighed in
+    /// free air (`weighing`), which acts there as in contact but is read there alone (in
+    /// contact a missing body effect would choose its value; holdout-3's stiffening with
+    /// a bias drift, seed 15, fitted on every sample, made free air worse).
+    pub fit_free_air: bool,
 }
 
 /// The baseline's readjustment a signature was fitted with: where the linearisation
