@@ -15,7 +15,7 @@ use super::geometry::{self, PathSurface, SiteSurface};
 use super::onset::{Approach, median};
 use super::session::SessionClock;
 use crate::recordings::Recording;
-use crate::sim::ft_sensor::low_pass_alpha;
+use crate::sim::ft_sensor::{low_pass_alpha, low_pass_lag_s, pole_hz};
 use crate::sim::torso::{
     Breathing, BreathingParams, DepthDamping, ProbeFace, ProbeKinematics, Relaxation,
     SiteStiffness, Torso, TorsoParams, rise_profile,
@@ -81,9 +81,13 @@ pub struct Model {
     pub bias: f64,
     /// Sensor delay \[s\].
     pub delay: f64,
-    /// Sensor low-pass cut-off \[Hz\] (0: none).
+    /// Sensor low-pass cut-off \[Hz\] (0: none): where the cascade is 3 dB down.
     #[serde(default)]
     pub filter_cutoff_hz: f64,
+    /// Equal first-order poles in the sensor low-pass (1 or 2; the scene's
+    /// `ft_sensor.low_pass_order`).
+    #[serde(default = "one_pole")]
+    pub filter_order: u32,
     /// Change of the sensor's fz bias from the session's first sample to its last \[N\]
     /// (`bias` is the value at the first).
     #[serde(default)]
@@ -163,6 +167,7 @@ impl Model {
             bias: 0.0,
             delay: 0.0,
             filter_cutoff_hz: 0.0,
+            filter_order: 1,
             bias_drift_n: 0.0,
             depth_damping: None,
             friction: 0.0,
@@ -182,6 +187,7 @@ impl Model {
             bias: 0.0,
             delay: 0.0,
             filter_cutoff_hz: 0.0,
+            filter_order: 1,
             bias_drift_n: 0.0,
             lateral_share: [0.0; 2],
             site_lateral_share: Vec::new(),
@@ -189,11 +195,11 @@ impl Model {
         }
     }
 
-    /// How late the sensor shows a ramp of force \[s\]: its delay, and a first-order
-    /// low-pass's `1/2πf_c`.
+    /// How late the sensor shows a ramp of force \[s\]: its delay, and its low-pass's
+    /// `n/2πf_p` (`n` poles at `f_p` each).
     pub fn sensor_lag_s(&self) -> f64 {
         let filter = if self.filter_cutoff_hz > 0.0 {
-            1.0 / (2.0 * std::f64::consts::PI * self.filter_cutoff_hz)
+            low_pass_lag_s(self.filter_cutoff_hz, self.filter_order)
         } else {
             0.0
         };
@@ -294,6 +300,11 @@ pub struct Prediction {
 }
 
 /// Linear interpolation of a sampled series at time `t`.
+/// The sensor low-pass's order where a saved model has none: one pole.
+fn one_pole() -> u32 {
+    1
+}
+
 fn interp3(t_axis: &[f64], values: &[[f64; 3]], t: f64) -> [f64; 3] {
     let k = t_axis
         .partition_point(|&x| x <= t)
@@ -620,12 +631,15 @@ pub fn sense(
     let top = setup.torso_params(model).top_z();
     let surface = surface_of(setup, model, index);
     if model.filter_cutoff_hz > 0.0 {
-        let alpha = low_pass_alpha(model.filter_cutoff_hz, REPLAY_DT);
+        let order = model.filter_order.max(1);
+        let alpha = low_pass_alpha(pole_hz(model.filter_cutoff_hz, order), REPLAY_DT);
         for series in [&mut sim_f, &mut sim_fx, &mut sim_fy] {
-            let mut y = series[0];
-            for v in series.iter_mut() {
-                y += alpha * (*v - y);
-                *v = y;
+            for _ in 0..order {
+                let mut y = series[0];
+                for v in series.iter_mut() {
+                    y += alpha * (*v - y);
+                    *v = y;
+                }
             }
         }
     }

@@ -70,6 +70,7 @@ fn model_json(m: &Model) -> serde_json::Value {
         "sensor_bias_fz_n": m.bias,
         "sensor_delay_s": m.delay,
         "sensor_low_pass_hz": m.filter_cutoff_hz,
+        "sensor_low_pass_order": m.filter_order,
         "sensor_bias_drift_n": m.bias_drift_n,
         "depth_damping": m.depth_damping,
         "friction": m.friction,
@@ -305,6 +306,7 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
     ft.bias[2] = -m.bias;
     ft.delay_s = m.delay;
     ft.low_pass_hz = m.filter_cutoff_hz;
+    ft.low_pass_order = m.filter_order;
     ft.bias_drift[2] = -m.bias_drift_n / o.setup.session.length().max(1e-9);
     let scene = CalibratedScene {
         torso: o.setup.torso_params(m),

@@ -212,12 +212,12 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                 let reread: Vec<&str> = names[..names.len() - 1].to_vec();
                 let region = judging.weighing(&current, entry.judged_in());
                 let channel = entry.channel();
-                let refit = |fitted: &[&str], free: Free| {
+                let refit = |start: &Model, fitted: &[&str], free: Free| {
                     refit_in_simulator(
                         setup,
                         dataset,
                         split,
-                        model.clone(),
+                        start.clone(),
                         (fitted, &reread, free),
                         k_per_unit,
                         in_free_air,
@@ -225,10 +225,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                 };
                 // `held`: the refit kept the parameters other than the candidate's and
                 // the damping where they were.
-                let ((model, diagnostics, predictions), held) = match region
-                    .as_ref()
-                    .and_then(Weighing::above_hz)
-                {
+                let fit_form = |start: &Model| match region.as_ref().and_then(Weighing::above_hz) {
                     // Weighed in a band, refitted there too: its own parameters and
                     // the body's damping, the rest held where the whole put it (a
                     // band above the breathing rate does not determine the breath's
@@ -242,6 +239,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                     // on validation, as in a close call.
                     Some(hz) => {
                         let above = refit(
+                            start,
                             &[effect.name],
                             Free {
                                 physics: true,
@@ -252,7 +250,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                                 free_air: false,
                             },
                         );
-                        let whole = refit(&names, Free::PER_SITE);
+                        let whole = refit(start, &names, Free::PER_SITE);
                         let error = |p: &[replay::Prediction]| {
                             rmse_against(dataset, &split.validation, p, channel, None)
                         };
@@ -263,8 +261,27 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                         );
                         if w < a { (whole, false) } else { (above, true) }
                     }
-                    None => (refit(&names, Free::PER_SITE), false),
+                    None => (refit(start, &names, Free::PER_SITE), false),
                 };
+                // From each start the element offers; the simulator decides on
+                // validation.
+                let validation_of =
+                    |fitted: &((Model, FitDiagnostics, Vec<replay::Prediction>), bool)| {
+                        rmse_against(dataset, &split.validation, &fitted.0.2, channel, None)
+                    };
+                let mut fitted = fit_form(&model);
+                for form in entry.other_starts(&model) {
+                    let other = fit_form(&form);
+                    let (now, then) = (validation_of(&fitted), validation_of(&other));
+                    tracing::debug!(
+                        "{} from another start: validation {then:.4} N against {now:.4} N",
+                        effect.name
+                    );
+                    if then < now {
+                        fitted = other;
+                    }
+                }
+                let ((model, diagnostics, predictions), held) = fitted;
                 let before = rmse_against(
                     dataset,
                     &split.validation,
@@ -374,7 +391,11 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
         let whole_ok = trial.after <= trial.before;
         let in_region =
             trial.weighed_in.is_some() && whole_ok && passes(trial.gate_before, trial.gate_after);
-        if in_region || passes(trial.before, trial.after) {
+        let idle = effects::named(trial.effect.name).is_some_and(|e| e.idle(&trial.model));
+        if idle {
+            tracing::debug!("{} refitted to no effect", trial.effect.name);
+        }
+        if !idle && (in_region || passes(trial.before, trial.after)) {
             try_richer(
                 &mut trial,
                 setup,
@@ -413,11 +434,16 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
             failures.failed(decision::Rejected {
                 name: trial.effect.name,
                 why: format!(
-                    "{}, but modelled in the simulator the validation RMSE went {}{}; needs {:.1} % lower{}",
+                    "{}, but modelled in the simulator {}the validation RMSE went {}{}; needs {:.1} % lower{}",
                     if second_chance {
                         "its signature nearly passed"
                     } else {
                         "its signature passed"
+                    },
+                    if idle {
+                        "its refit left it doing nothing (its parameter at the no-effect end) and "
+                    } else {
+                        ""
                     },
                     figures(trial.before, trial.after),
                     if trial.weighed_in.is_some() {
@@ -1432,6 +1458,76 @@ mod tests {
             (everywhere - total).abs() > 0.3,
             "on every sample {everywhere:.3} N: the contact error does not lend the drift anything, and the test tests nothing"
         );
+    }
+
+    /// A sensor low-pass of one pole or two, on oscillations at 0.7–6 Hz: the
+    /// signature reads the pole count and the cut-off (3 dB down) of each.
+    #[test]
+    fn a_filter_signature_reads_its_pole_count() {
+        use crate::sim::ft_sensor::{low_pass_alpha, pole_hz};
+        let tau = 2.0 * std::f64::consts::PI;
+        let motion = |t: f64| {
+            if (5.0..15.0).contains(&t) {
+                let u = t - 5.0;
+                let parts = [(0.7, 0.002), (2.3, 0.0012), (6.0, 0.0006)];
+                (
+                    0.006
+                        + parts
+                            .iter()
+                            .map(|(f, a)| a * (tau * f * u).sin())
+                            .sum::<f64>(),
+                    parts
+                        .iter()
+                        .map(|(f, a)| a * tau * f * (tau * f * u).cos())
+                        .sum::<f64>(),
+                )
+            } else {
+                (-0.01, 0.0)
+            }
+        };
+        let cutoff = 4.0;
+        let filter = effects::named("sensor_filter").expect("in the catalogue");
+        let train: Vec<bool> = (0..12).map(|k| k % 3 != 2).collect();
+        for order in [1u32, 2] {
+            let mut series = recordings(&motion, &|_, _, _, _| 0.0, 0.0);
+            let alpha = low_pass_alpha(pole_hz(cutoff, order), 0.01);
+            for s in &mut series {
+                for _ in 0..order {
+                    let mut y = s.measured[0];
+                    for v in &mut s.measured {
+                        y += alpha * (*v - y);
+                        *v = y;
+                    }
+                }
+                for i in 0..s.len() {
+                    s.residual[i] = s.measured[i] - s.predicted[i];
+                }
+            }
+            let base = effects::Base {
+                k: 2000.0,
+                c: 20.0,
+                center_xy: [0.5, 0.0],
+                half_size: [0.15, 0.1],
+                fit_above_hz: None,
+                fit_free_air: false,
+            };
+            let sig = filter
+                .signature(&series, &train, base)
+                .expect("a signature");
+            let (read_order, read_cutoff) = (
+                sig.params["order"].as_u64().unwrap_or(0),
+                sig.params["cutoff_hz"].as_f64().unwrap_or(0.0),
+            );
+            assert_eq!(
+                read_order,
+                u64::from(order),
+                "cut-off read {read_cutoff:.2} Hz"
+            );
+            assert!(
+                (read_cutoff / cutoff - 1.0).abs() < 0.1,
+                "{order} pole(s): {read_cutoff:.2} Hz for {cutoff} Hz"
+            );
+        }
     }
 
     /// Depth-dependent damping adds ≈ 4 % beside a breath's misfit eleven times its

@@ -27,6 +27,12 @@ pub fn pole_hz(cutoff_hz: f64, order: u32) -> f64 {
     cutoff_hz / (2f64.powf(1.0 / n) - 1.0).sqrt()
 }
 
+/// Low-frequency group delay of that cascade \[s\]: `n / 2πf_p` (a first-order
+/// low-pass: `1/2πf_c`). A ramp comes out this late.
+pub fn low_pass_lag_s(cutoff_hz: f64, order: u32) -> f64 {
+    f64::from(order.max(1)) / (2.0 * std::f64::consts::PI * pole_hz(cutoff_hz, order))
+}
+
 /// Sensor imperfections.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]

@@ -417,7 +417,8 @@ pub(super) type Stage = dyn Fn(&Series, &[f64], f64) -> Vec<f64> + Sync;
 /// stage(R)·β`, `R` the baseline's readjustment columns: a baseline whose damping
 /// absorbed a lag is re-balanced *through* the sensor, not beside it (with the columns
 /// unfiltered, a 4.8 Hz filter on a soft, well-damped body fitted worse than nothing).
-/// No free gain: the grid value whose training SSE is least, and the prediction at it.
+/// No free gain: the grid value whose training SSE is least, the prediction at it, and
+/// that SSE.
 /// On a slide the stage's shape is taken less its path part ([`path_part`]): a lag
 /// along a slide reads the surface shifted along the path, which the baseline's slope
 /// and curvature took (holdout-3's 52 ms delay, seed 15: with the whole shape the
@@ -434,7 +435,7 @@ pub(super) fn fit_sensor_stage(
     base: Base,
     grid: &[f64],
     (stage, lag): (&Stage, &dyn Fn(f64) -> f64),
-) -> (f64, Vec<Vec<f64>>, Readjust) {
+) -> (f64, Vec<Vec<f64>>, Readjust, f64) {
     let mut best: Option<(f64, Solved, Vec<Vec<f64>>)> = None;
     let v_ref = onset::reference_speed(series.iter().map(|s| s.onsets.as_slice()));
     for &g in grid {
@@ -489,5 +490,5 @@ pub(super) fn fit_sensor_stage(
         .zip(&shapes)
         .map(|(p, l)| p.iter().zip(l).map(|(p, l)| p + l).collect())
         .collect();
-    (g, predicted, Readjust::from_tail(&solved.beta))
+    (g, predicted, Readjust::from_tail(&solved.beta), solved.sse)
 }

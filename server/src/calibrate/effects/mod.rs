@@ -7,7 +7,7 @@
 //! |---|---|---|
 //! | `sensor_bias` | a constant, also in free air | sensor bias (`ft_sensor.bias`) |
 //! | `sensor_delay` | `F(t − τ) − F(t)`: residual follows `−τ·dF/dt` | sensor delay stage (`ft_sensor.delay_s`) |
-//! | `sensor_filter` | `LP(F) − F`, first order: lags and attenuates fast changes | sensor low-pass (`ft_sensor.low_pass_hz`) |
+//! | `sensor_filter` | `LP(F) − F`, one pole or two: lags and attenuates fast changes | sensor low-pass (`ft_sensor.low_pass_hz`, `low_pass_order`) |
 //! | `bias_drift` | `b₀ + Δ·(t_session − t₀)/T`, also in free air | drifting sensor bias (`ft_sensor.bias_drift`) |
 //! | `tissue_inertia` | `−m·a_z` while touching | moving mass (`torso.moving_mass`) |
 //! | `nonlinear_stiffness` | `k·(δ₀(δ/δ₀)ⁿ − δ)` or `k·(δ₀(e^{δ/d} − 1)/(e^{δ₀/d} − 1) − δ)` (the better) plus a stiffness change, in contact | stiffening spring: power law (`torso.exponent`) or Fung's exponential (`torso.stiffening_depth_m`) |
@@ -168,6 +168,13 @@ pub trait Effect: Sync {
         None
     }
 
+    /// Other starting points of the trial's refit: the element in forms its signature
+    /// could not choose between (a filter's other pole count). Each is refitted in the
+    /// trial beside the signature's start, and the better on validation is kept.
+    fn other_starts(&self, _model: &Model) -> Vec<Model> {
+        Vec::new()
+    }
+
     /// Re-read the element's per-recording nuisance states (a breath's phase and rate)
     /// from the simulator as calibrated: `series` holds its predictions, `k` its contact
     /// stiffness \[N/m\]; only the recordings whose index `update` holds as `true` are
@@ -176,6 +183,14 @@ pub trait Effect: Sync {
     /// got wrong besides (a slide's path, a chirp near the breathing rate); the
     /// calibrated residual with the element's own part added back carries less.
     fn refine(&self, _model: &mut Model, _series: &[Series], _k: f64, _update: &[bool]) -> bool {
+        false
+    }
+
+    /// Whether the element in `model` does nothing the data could see (a delay refitted
+    /// to 0 s): a trial whose refit left it so is no evidence for it, whatever the
+    /// other parameters' refit gained (holdout-3 seed 16's delay + inertia named a
+    /// delay of 0 ms by the 13.5 % the re-balanced damping and filter took).
+    fn idle(&self, _model: &Model) -> bool {
         false
     }
 

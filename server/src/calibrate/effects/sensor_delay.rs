@@ -30,6 +30,11 @@ impl Effect for SensorDelay {
         signature(series, train, base)
     }
 
+    /// Below a millisecond (half the refit's step), a delay shows in no recording.
+    fn idle(&self, model: &Model) -> bool {
+        model.delay < 0.001
+    }
+
     fn apply(&self, params: &Params, model: &mut Model, _setup: &Setup) {
         model.delay = number(params, "delay_s");
     }
@@ -62,7 +67,7 @@ impl Effect for SensorDelay {
 /// up to 100 ms.
 fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature> {
     let grid: Vec<f64> = (1..=40).map(|k| k as f64 * 0.0025).collect();
-    let (tau, predicted, readjust) =
+    let (tau, predicted, readjust, _) =
         fit_sensor_stage(series, train, base, &grid, (&delayed, &|tau| tau));
     let mut params = Params::new();
     params.insert("delay_s".into(), tau.into());
