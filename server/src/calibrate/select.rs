@@ -1366,6 +1366,18 @@ mod tests {
         recordings(&motion, &extra, 0.0)
     }
 
+    /// The body the test series were made with (2000 N/m, 20 N·s/m, at x = 0.5 m).
+    fn test_base(fit_free_air: bool) -> effects::Base {
+        effects::Base {
+            k: 2000.0,
+            c: 20.0,
+            center_xy: [0.5, 0.0],
+            half_size: [0.15, 0.1],
+            fit_above_hz: None,
+            fit_free_air,
+        }
+    }
+
     fn round(series: &[Series]) -> Round {
         round_with(series, false)
     }
@@ -1381,14 +1393,7 @@ mod tests {
                 validation: &validation,
                 breathing_modelled,
             },
-            effects::Base {
-                k: 2000.0,
-                c: 20.0,
-                center_xy: [0.5, 0.0],
-                half_size: [0.15, 0.1],
-                fit_above_hz: None,
-                fit_free_air: false,
-            },
+            test_base(false),
             0.1,
             &[],
             FIRST_GAIN,
@@ -1436,15 +1441,9 @@ mod tests {
         let train: Vec<bool> = (0..series.len()).map(|k| k % 3 != 2).collect();
         let drift = effects::named("bias_drift").expect("in the catalogue");
         let read = |fit_free_air: bool| {
-            let base = effects::Base {
-                k: 2000.0,
-                c: 20.0,
-                center_xy: [0.5, 0.0],
-                half_size: [0.15, 0.1],
-                fit_above_hz: None,
-                fit_free_air,
-            };
-            let sig = drift.signature(&series, &train, base).expect("a signature");
+            let sig = drift
+                .signature(&series, &train, test_base(fit_free_air))
+                .expect("a signature");
             [sig.params["fz_n"].as_f64(), sig.params["total_n"].as_f64()]
                 .map(Option::unwrap_or_default)
         };
@@ -1503,16 +1502,8 @@ mod tests {
                     s.residual[i] = s.measured[i] - s.predicted[i];
                 }
             }
-            let base = effects::Base {
-                k: 2000.0,
-                c: 20.0,
-                center_xy: [0.5, 0.0],
-                half_size: [0.15, 0.1],
-                fit_above_hz: None,
-                fit_free_air: false,
-            };
             let sig = filter
-                .signature(&series, &train, base)
+                .signature(&series, &train, test_base(false))
                 .expect("a signature");
             let (read_order, read_cutoff) = (
                 sig.params["order"].as_u64().unwrap_or(0),
