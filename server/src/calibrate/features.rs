@@ -151,13 +151,9 @@ impl Series {
     ) -> Self {
         let n = rec.len();
         let dt = (rec.t[n - 1] - rec.t[0]) / (n - 1).max(1) as f64;
-        let half = ((0.01 / dt).round() as usize).max(1);
-        let az = (0..n)
-            .map(|i| {
-                let a = i.saturating_sub(half);
-                let b = (i + half).min(n - 1);
-                (rec.v[b][2] - rec.v[a][2]) / (rec.t[b] - rec.t[a]).max(1e-9)
-            })
+        let az = super::trajectory::acceleration(&rec.t, &rec.v)
+            .iter()
+            .map(|a| a[2])
             .collect();
         let measured: Vec<f64> = rec.f.iter().map(|f| f[2]).collect();
         let residual = measured

@@ -410,7 +410,13 @@ fn onset_breath_shift(
 
 /// The body part of a replay (see [`BodyReplay`]).
 pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -> BodyReplay {
-    let params = setup.torso_params(model);
+    let mut params = setup.torso_params(model);
+    // A moving mass pushes back `−m·a` with the probe's acceleration as the recording
+    // has it (see `trajectory::acceleration`), added below; the torso's own term
+    // would difference the velocity over a replay step.
+    let moving_mass = std::mem::take(&mut params.moving_mass);
+    let acceleration =
+        (moving_mass > 0.0).then(|| super::trajectory::acceleration(&recording.t, &recording.v));
     let Ok(mut torso) = Torso::new(params.clone(), ProbeFace::default()) else {
         return BodyReplay {
             t: Vec::new(),
@@ -504,7 +510,7 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
         p[2] -= z - breath_shift;
         v[2] -= dz;
         let clear = p[2] + REPLAY_DT * v[2].min(0.0) > top + 0.002;
-        let (f, contact) = if clear && at_rest && model.moving_mass == 0.0 {
+        let (mut f, contact) = if clear && at_rest {
             ([0.0; 3], false)
         } else {
             let probe = ProbeKinematics::upright(p, v);
@@ -520,6 +526,10 @@ pub fn body(setup: &Setup, model: &Model, recording: &Recording, index: usize) -
             }
             (w.force, w.in_contact())
         };
+        if let (Some(acceleration), true) = (&acceleration, contact) {
+            let a = interp3(&recording.t, acceleration, t);
+            f = [0, 1, 2].map(|k| f[k] - moving_mass * a[k]);
+        }
         sim_t.push(t);
         sim_fx.push(f[0]);
         sim_fy.push(f[1]);

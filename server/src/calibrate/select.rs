@@ -141,6 +141,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                 half_size: [setup.torso.size[0] / 2.0, setup.torso.size[1] / 2.0],
                 fit_above_hz: None,
                 fit_free_air: false,
+                moving_mass: calibrated.moving_mass > 0.0,
             },
             noise,
             &skip,
@@ -1375,6 +1376,7 @@ mod tests {
             half_size: [0.15, 0.1],
             fit_above_hz: None,
             fit_free_air,
+            moving_mass: false,
         }
     }
 

@@ -263,6 +263,9 @@ pub struct Base {
     /// contact a missing body effect would choose its value; holdout-3's stiffening with
     /// a bias drift, seed 15, fitted on every sample, made free air worse).
     pub fit_free_air: bool,
+    /// A moving mass is modelled (`tissue_inertia` named): its change is readjusted with
+    /// the baseline's (see [`readjust_columns`]).
+    pub moving_mass: bool,
 }
 
 /// The baseline's readjustment a signature was fitted with: where the linearisation
