@@ -205,9 +205,9 @@ fn integrated(t: &[f64], v: &[[f64; 3]]) -> Vec<[f64; 3]> {
 /// Half the span of the velocity difference [`acceleration`] takes \[s\].
 pub const ACCELERATION_HALF_S: f64 = 0.01;
 /// Width of the window whose mean square is the acceleration's local power \[s\].
-const ACCELERATION_WINDOW_S: f64 = 0.25;
+pub const ACCELERATION_WINDOW_S: f64 = 0.25;
 /// The share of windows, quietest first, whose power is taken for the noise's.
-const ACCELERATION_NOISE_QUANTILE: f64 = 0.1;
+pub const ACCELERATION_NOISE_QUANTILE: f64 = 0.1;
 
 /// The probe's acceleration at every sample [m/s²], as its expected value given the
 /// recording: the smoothed velocity's difference over ±[`ACCELERATION_HALF_S`] (at least
