@@ -332,11 +332,9 @@ mod tests {
     }
 
     /// Holdout-3 seed 17's layout: each press alone at its site, one site with a chirp
-    /// too, both slides at one site. Validation still gets every protocol, and the
-    /// test a press.
-    #[test]
-    fn presses_each_alone_at_a_site_still_validate_and_test() {
-        let data = dataset(&[
+    /// too, both slides at one site.
+    fn seed_17_layout() -> Dataset {
+        dataset(&[
             ("01.csv", "upper_right", "press", 1),
             ("02.csv", "lower_left", "slide", 1),
             ("03.csv", "upper_right", "chirp", 1),
@@ -345,7 +343,13 @@ mod tests {
             ("06.csv", "lower_left", "slide", 1),
             ("07.csv", "upper_left", "press", 1),
             ("08.csv", "lower_left", "chirp", 1),
-        ]);
+        ])
+    }
+
+    /// Seed 17's layout: validation still gets every protocol, and the test a press.
+    #[test]
+    fn presses_each_alone_at_a_site_still_validate_and_test() {
+        let data = seed_17_layout();
         for seed in 0..20 {
             let s = split(&data, seed);
             assert_eq!(
@@ -366,16 +370,7 @@ mod tests {
     /// radius covered by no other site, always trains.
     #[test]
     fn the_held_out_press_leaves_its_radius_to_a_training_site() {
-        let mut data = dataset(&[
-            ("01.csv", "upper_right", "press", 1),
-            ("02.csv", "lower_left", "slide", 1),
-            ("03.csv", "upper_right", "chirp", 1),
-            ("04.csv", "center", "press", 1),
-            ("05.csv", "lower_right", "press", 1),
-            ("06.csv", "lower_left", "slide", 1),
-            ("07.csv", "upper_left", "press", 1),
-            ("08.csv", "lower_left", "chirp", 1),
-        ]);
+        let mut data = seed_17_layout();
         let [cx, cy] = data.meta.torso_center_xy;
         let at = |site: &str| match site {
             "upper_right" => [cx + 0.06, cy + 0.05],
