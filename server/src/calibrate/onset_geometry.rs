@@ -3,8 +3,8 @@
 //! path at its own, all relative to the median onset of every recording as read without
 //! a lag (the global surface offset's reference, where the baseline started it).
 //!
-//! The onsets are read through the model's sensor: a sensor that lags the body by `τ`
-//! (a delay, or a low-pass's `1/2πf_c` on a ramp) crosses the onset band `τ` late,
+//! The onsets are read through the model's sensor: a sensor that delays the body by `τ`
+//! crosses the onset band `τ` late (a low-pass barely does: `Model::onset_lag_s`),
 //! `v·τ` lower on an approach at speed `v`. So when a candidate gives the model a lag,
 //! the heights are placed again with it ([`relag`]), each onset raised by its own `v·τ`
 //! less the common part the fitted global offset took already (`v_ref·τ`, see
@@ -103,7 +103,7 @@ pub fn place(setup: &Setup, model: &mut Model, lag: f64) -> Option<f64> {
 
 /// Place the onset heights again for the model's sensor lag.
 pub fn relag(setup: &Setup, model: &mut Model) {
-    place(setup, model, model.sensor_lag_s());
+    place(setup, model, model.onset_lag_s());
 }
 
 #[cfg(test)]

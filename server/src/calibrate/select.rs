@@ -1465,7 +1465,7 @@ mod tests {
     /// signature reads the pole count and the cut-off (3 dB down) of each.
     #[test]
     fn a_filter_signature_reads_its_pole_count() {
-        use crate::sim::ft_sensor::{low_pass_alpha, pole_hz};
+        use crate::sim::ft_sensor::{low_pass_sampled, pole_hz};
         let tau = 2.0 * std::f64::consts::PI;
         let motion = |t: f64| {
             if (5.0..15.0).contains(&t) {
@@ -1491,14 +1491,11 @@ mod tests {
         let train: Vec<bool> = (0..12).map(|k| k % 3 != 2).collect();
         for order in [1u32, 2] {
             let mut series = recordings(&motion, &|_, _, _, _| 0.0, 0.0);
-            let alpha = low_pass_alpha(pole_hz(cutoff, order), 0.01);
             for s in &mut series {
+                // The sensor filters a continuous force: its samples, linear between.
                 for _ in 0..order {
-                    let mut y = s.measured[0];
-                    for v in &mut s.measured {
-                        y += alpha * (*v - y);
-                        *v = y;
-                    }
+                    let start = s.measured[0];
+                    low_pass_sampled(&mut s.measured, |_| 0.01, pole_hz(cutoff, order), start);
                 }
                 for i in 0..s.len() {
                     s.residual[i] = s.measured[i] - s.predicted[i];

@@ -19,7 +19,7 @@ use super::linear::*;
 use super::{Base, Effect, Parameter, Params, Region, ReportContext, Signature, number};
 use crate::calibrate::features::Series;
 use crate::calibrate::replay::{Model, Setup};
-use crate::sim::ft_sensor::{low_pass_alpha, low_pass_lag_s, pole_hz};
+use crate::sim::ft_sensor::{low_pass_lag_s, low_pass_sampled, pole_hz};
 
 const NAME: &str = "sensor_filter";
 
@@ -56,10 +56,10 @@ impl Effect for SensorFilter {
             .iter()
             .map(|&order| {
                 let stage = move |s: &Series, x: &[f64], hz: f64| low_pass(s, x, hz, order);
-                let lag = move |hz: f64| low_pass_lag_s(hz, order);
+                // A low-pass barely moves the contact onsets (see `Model::onset_lag_s`).
                 (
                     order,
-                    fit_sensor_stage(series, train, base, &grid, (&stage, &lag)),
+                    fit_sensor_stage(series, train, base, &grid, (&stage, &|_| 0.0)),
                 )
             })
             .min_by(|a, b| a.1.3.total_cmp(&b.1.3))
@@ -151,11 +151,8 @@ fn low_pass(s: &Series, x: &[f64], cutoff: f64, order: u32) -> Vec<f64> {
     let pole = pole_hz(cutoff, order);
     let mut out = x.to_vec();
     for _ in 0..order {
-        let mut y = out[0];
-        for (i, v) in out.iter_mut().enumerate().skip(1) {
-            y += low_pass_alpha(pole, s.t[i] - s.t[i - 1]) * (*v - y);
-            *v = y;
-        }
+        let start = out[0];
+        low_pass_sampled(&mut out, |i| s.t[i] - s.t[i - 1], pole, start);
     }
     out
 }
