@@ -106,7 +106,7 @@ pub fn fit(setup: &Setup, dataset: &Dataset, split: &Split) -> Baseline {
             entry.file
         );
     }
-    if let Some(reference) = onset_geometry::place(setup, &mut start, 0.0) {
+    if let Some(reference) = onset_geometry::place(setup, &mut start, &|_| 0.0) {
         start.surface_offset = reference - dataset.meta.nominal_surface_z;
         start.onset_anchor = Some(OnsetAnchor {
             offset_m: start.surface_offset,

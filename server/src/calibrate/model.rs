@@ -524,13 +524,13 @@ pub fn fit_model(
 /// A sensor lag the effects give or change re-reads the contact onsets (see
 /// [`onset_geometry`]).
 pub fn apply_effects(model: &mut Model, accepted: &[Accepted], setup: &Setup) {
-    let lag = model.onset_lag_s();
+    let lag = model.onset_sensor();
     for a in accepted {
         effects::named(a.name)
             .expect("accepted effects are catalogue effects")
             .apply(&a.params, model, setup);
     }
-    if model.onset_lag_s() != lag {
+    if model.onset_sensor() != lag {
         onset_geometry::relag(setup, model);
     }
 }
@@ -538,11 +538,11 @@ pub fn apply_effects(model: &mut Model, accepted: &[Accepted], setup: &Setup) {
 /// Take the effect `name` out of `model` again (its fields as `baseline` has them).
 /// A sensor lag it took away re-reads the contact onsets, as [`apply_effects`] does.
 pub fn remove_effect(model: &mut Model, name: &str, baseline: &Model, setup: &Setup) {
-    let lag = model.onset_lag_s();
+    let lag = model.onset_sensor();
     effects::named(name)
         .expect("named effects are catalogue effects")
         .remove(model, baseline);
-    if model.onset_lag_s() != lag {
+    if model.onset_sensor() != lag {
         onset_geometry::relag(setup, model);
     }
 }

@@ -19,7 +19,7 @@
 //! built on them moved the whole skin by 2 mm to compensate.
 //!
 //! Biases to know: a sensor delay `τ` places the onset `v·τ` too low (a low-pass
-//! barely moves it where the force jumps at touch-down: see `Model::onset_lag_s`) (0.2 mm at 10 mm/s and 20 ms; 0.3–1.0 mm on holdout-3 seed 13's
+//! less, where the force jumps at touch-down: see [`touch_down_lag`]) (0.2 mm at 10 mm/s and 20 ms; 0.3–1.0 mm on holdout-3 seed 13's
 //! delay, whose approaches ran at different speeds) — each [`Approach`] keeps its speed
 //! so a model with a lag reads it again ([`Approach::skin_z`]); breathing moves it with
 //! the phase (the median over approaches helps); a recording that starts in contact has
@@ -70,6 +70,39 @@ impl Approach {
     pub fn skin_z(&self, lag: f64) -> f64 {
         self.z + self.speed * lag
     }
+}
+
+/// How late `order` equal poles at `pole_hz` each show a touch-down \[s\]: the force
+/// `jump + rate·t` from `t = 0` (a contact damping's `c·v` at once, the spring's `k·v`
+/// a second) crossing the onset band's nominal lower edge, against the plain force. A
+/// ramp comes out the cascade's whole lag `n/2πf_p` late; a jump well above the band
+/// within a part of it (a jump four times the edge: under half), so a low-pass is not a
+/// delay at touch-down (see `Model::onset_lag_s`).
+pub fn touch_down_lag(pole_hz: f64, order: u32, jump: f64, rate: f64) -> f64 {
+    let low = BAND_N[0];
+    let tau = 1.0 / (2.0 * std::f64::consts::PI * pole_hz);
+    let plain = if jump >= low {
+        0.0
+    } else {
+        (low - jump) / rate.max(1e-9)
+    };
+    let dt = tau / 200.0;
+    let give_up = plain + 50.0 * tau * f64::from(order.max(1));
+    let alpha = 1.0 - (-dt / tau).exp();
+    let mut stages = vec![0.0; order.max(1) as usize];
+    let mut t = 0.0;
+    while t < give_up {
+        t += dt;
+        let mut input = jump + rate * t;
+        for y in &mut stages {
+            *y += alpha * (input - *y);
+            input = *y;
+        }
+        if input >= low {
+            return (t - plain).max(0.0);
+        }
+    }
+    f64::from(order.max(1)) * tau
 }
 
 /// The surface height [m, world z] under `rec`'s probe at its contact onsets, if it
@@ -446,6 +479,27 @@ mod tests {
         let mean = errors.iter().map(|e| e.abs()).sum::<f64>() / errors.len() as f64;
         assert!(worst <= 0.55 * travel, "errors {errors:?}");
         assert!(mean <= 0.3 * travel, "errors {errors:?}");
+    }
+
+    #[test]
+    fn a_low_pass_lags_a_ramp_fully_and_a_touch_down_jump_little() {
+        let pole = 10.0;
+        let tau = 1.0 / (2.0 * std::f64::consts::PI * pole);
+        for order in [1, 2] {
+            // A slow ramp (0.15 N reached after 0.3 s): the cascade's whole lag.
+            let ramp = touch_down_lag(pole, order, 0.0, 0.5);
+            let full = f64::from(order) * tau;
+            assert!(
+                (ramp / full - 1.0).abs() < 0.05,
+                "{order}: {ramp} s for {full} s"
+            );
+            // A jump to four times the band's edge: under half of it.
+            let jump = touch_down_lag(pole, order, 4.0 * BAND_N[0], 0.5);
+            assert!(
+                jump < 0.5 * full,
+                "{order}: {jump} s against a lag of {full} s"
+            );
+        }
     }
 
     #[test]

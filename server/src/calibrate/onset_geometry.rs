@@ -4,7 +4,7 @@
 //! a lag (the global surface offset's reference, where the baseline started it).
 //!
 //! The onsets are read through the model's sensor: a sensor that delays the body by `τ`
-//! crosses the onset band `τ` late (a low-pass barely does: `Model::onset_lag_s`),
+//! crosses the onset band `τ` late (a low-pass less: `Model::onset_lag_s`),
 //! `v·τ` lower on an approach at speed `v`. So when a candidate gives the model a lag,
 //! the heights are placed again with it ([`relag`]), each onset raised by its own `v·τ`
 //! less the common part the fitted global offset took already (`v_ref·τ`, see
@@ -35,20 +35,27 @@ pub fn reference(setup: &Setup) -> Option<f64> {
     Some(all[all.len() / 2])
 }
 
-/// Sites' heights and recordings' corrections from the onsets read with `lag` \[s\]
-/// (less its common part), relative to [`reference()`], which it returns (`None`, and
-/// nothing placed, without onsets). The global surface offset is the caller's.
-pub fn place(setup: &Setup, model: &mut Model, lag: f64) -> Option<f64> {
+/// Sites' heights and recordings' corrections from the onsets read with the sensor lag
+/// `lag(v)` \[s\] of an approach at speed `v` (less its common part), relative to
+/// [`reference()`], which it returns (`None`, and nothing placed, without onsets). The
+/// global surface offset is the caller's.
+pub fn place(setup: &Setup, model: &mut Model, lag: &dyn Fn(f64) -> f64) -> Option<f64> {
     let reference = reference(setup)?;
-    let common = lag * onset::reference_speed(setup.approaches.iter().map(Vec::as_slice));
+    let v_ref = onset::reference_speed(setup.approaches.iter().map(Vec::as_slice));
+    let common = lag(v_ref) * v_ref;
+    let skin = |a: &Approach| a.skin_z(lag(a.speed));
     let points: Vec<Option<Approach>> = setup
         .approaches
         .iter()
-        .map(|found| onset::median_onset(found, lag))
+        .map(|found| {
+            let mut found = found.clone();
+            found.sort_by(|a, b| skin(a).total_cmp(&skin(b)));
+            found.get(found.len() / 2).copied()
+        })
         .collect();
     let onsets: Vec<Option<f64>> = points
         .iter()
-        .map(|p| p.map(|a| a.skin_z(lag) - common))
+        .map(|p| p.map(|a| skin(&a) - common))
         .collect();
     let site_of = |i: usize| setup.recording_sites.get(i).map(String::as_str);
     for site in &mut model.surface {
@@ -71,7 +78,7 @@ pub fn place(setup: &Setup, model: &mut Model, lag: f64) -> Option<f64> {
         if let (Some(Some(a)), Some(site)) = (points.get(path.recording), site)
             && site.source == Source::Onset
         {
-            path.height_m = a.skin_z(lag) - common - reference - site.height_m;
+            path.height_m = skin(a) - common - reference - site.height_m;
             path.height_source = Source::Onset;
             path.anchor_m = (a.xy[0] - path.centre[0]) * path.along[0]
                 + (a.xy[1] - path.centre[1]) * path.along[1];
@@ -103,7 +110,8 @@ pub fn place(setup: &Setup, model: &mut Model, lag: f64) -> Option<f64> {
 
 /// Place the onset heights again for the model's sensor lag.
 pub fn relag(setup: &Setup, model: &mut Model) {
-    place(setup, model, model.onset_lag_s());
+    let sensor = model.clone();
+    place(setup, model, &|v| sensor.onset_lag_s(v));
 }
 
 #[cfg(test)]
@@ -149,7 +157,7 @@ mod tests {
             })
             .to_vec();
         let height = |m: &Model, site: &str| m.surface_at(site).unwrap().height_m;
-        assert_eq!(place(&setup, &mut model, 0.0), Some(0.0995));
+        assert_eq!(place(&setup, &mut model, &|_| 0.0), Some(0.0995));
         assert!((height(&model, "a") - 0.0005).abs() < 1e-12);
         model.delay = 0.02;
         relag(&setup, &mut model);

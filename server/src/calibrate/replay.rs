@@ -195,18 +195,35 @@ impl Model {
         }
     }
 
-    /// How late the sensor shows a contact onset \[s\]: its delay. Not its low-pass:
-    /// a low-pass lags a ramp by `n/2πf_p`, but at touch-down the force of a contact
-    /// with damping jumps, and a filtered jump crosses the onset band within a small
-    /// part of that lag. On holdout-3 seed 19's 13 Hz one-pole filter (12 ms), the
-    /// onsets sat 0.07–0.10 mm lower than without it at 6–38 mm/s, where `v` times the
-    /// lag said 0.07–0.46 mm; raised that way, the filter's signature made training
-    /// worse at every cut-off (at 13 Hz by 25 %), and without the rise its training
-    /// minimum sat at 12.6 Hz. (Reading the shift from the force low-passed again
-    /// was tried too: a second pass lags a filtered jump more than the first did, and
-    /// it spread the shifts 0.02–0.24 mm.)
-    pub fn onset_lag_s(&self) -> f64 {
-        self.delay
+    /// How late the sensor shows a contact onset approached at `speed` \[s\]: its
+    /// delay, and what its low-pass does to this model's touch-down (the damping's
+    /// `c·v` at once, the spring's `k·v` a second: `onset::touch_down_lag`), not the
+    /// low-pass's whole lag `n/2πf_p`, which only a ramp from zero shows. On holdout-3
+    /// seed 19's 13 Hz one-pole filter (12 ms), the onsets sat 0.07–0.10 mm lower than
+    /// without it at 6–38 mm/s, where `v` times the lag said 0.07–0.46 mm; raised that
+    /// way, the filter's signature made training worse at every cut-off (at 13 Hz by
+    /// 25 %). Not raised at all, seed 16's two-pole 3.8 Hz filter was named a delay.
+    /// (Reading the shift from the force low-passed a second time was tried too: a
+    /// second pass lags a filtered jump more than the first did, and it spread seed
+    /// 19's shifts 0.02–0.24 mm.)
+    pub fn onset_lag_s(&self, speed: f64) -> f64 {
+        let filter = if self.filter_cutoff_hz > 0.0 {
+            let order = self.filter_order.max(1);
+            super::onset::touch_down_lag(
+                pole_hz(self.filter_cutoff_hz, order),
+                order,
+                self.damping * speed,
+                self.stiffness * speed,
+            )
+        } else {
+            0.0
+        };
+        self.delay + filter
+    }
+
+    /// The sensor stages [`Model::onset_lag_s`] reads.
+    pub fn onset_sensor(&self) -> (f64, f64, u32) {
+        (self.delay, self.filter_cutoff_hz, self.filter_order)
     }
 
     /// The range the fit may move the global surface offset in \[m\]: around the onsets'
@@ -214,7 +231,8 @@ impl Model {
     pub fn offset_bounds(&self) -> (f64, f64) {
         match self.onset_anchor {
             Some(anchor) => {
-                let centre = anchor.offset_m + self.onset_lag_s() * anchor.speed_m_per_s;
+                let speed = anchor.speed_m_per_s;
+                let centre = anchor.offset_m + self.onset_lag_s(speed) * speed;
                 (centre - OFFSET_REACH_M, centre + OFFSET_REACH_M)
             }
             None => (-OFFSET_RANGE_M, OFFSET_RANGE_M),

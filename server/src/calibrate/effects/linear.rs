@@ -385,8 +385,9 @@ pub(super) fn steady_stretches(s: &Series) -> Vec<std::ops::Range<usize>> {
 /// How much higher than the baseline placed it the skin under `s` stands behind a
 /// sensor lag `lag` \[s\]: its median onset's speed less `v_ref`, times the lag (0 for a
 /// recording whose surface no onset placed).
-fn onset_rise(s: &Series, v_ref: f64, lag: f64) -> f64 {
-    s.placed_by.map_or(0.0, |a| (a.speed - v_ref) * lag)
+fn onset_rise(s: &Series, v_ref: f64, lag: &dyn Fn(f64) -> f64) -> f64 {
+    s.placed_by
+        .map_or(0.0, |a| a.speed * lag(a.speed) - v_ref * lag(v_ref))
 }
 
 /// A slide's path shape: its position along the path and its square, in contact (none
@@ -434,7 +435,7 @@ pub(super) type Stage = dyn Fn(&Series, &[f64], f64) -> Vec<f64> + Sync;
 /// signature made both slides worse, 1.16 → 1.82 N and 0.50 → 0.76 N, while it took
 /// 80 % off the presses and chirps).
 ///
-/// A stage that lags a ramp by `lag(g)` \[s\] also moved the skin the contact onsets read
+/// A stage that lags an onset approached at `v` by `lag(g, v)` \[s\] also moved the skin the contact onsets read
 /// (see `onset_geometry`): a recording placed at its own onset, approached at speed `v`,
 /// stands `(v − v_ref)·lag` higher in a model with the stage (the fitted offset took
 /// `v_ref·lag`), `k` times that more force in contact, seen through the stage too.
@@ -443,7 +444,7 @@ pub(super) fn fit_sensor_stage(
     train: &[bool],
     base: Base,
     grid: &[f64],
-    (stage, lag): (&Stage, &dyn Fn(f64) -> f64),
+    (stage, lag): (&Stage, &dyn Fn(f64, f64) -> f64),
 ) -> (f64, Vec<Vec<f64>>, Readjust, f64) {
     let mut best: Option<(f64, Solved, Vec<Vec<f64>>)> = None;
     let v_ref = onset::reference_speed(series.iter().map(|s| s.onsets.as_slice()));
@@ -451,7 +452,7 @@ pub(super) fn fit_sensor_stage(
         let shapes: Vec<Vec<f64>> = series
             .iter()
             .map(|s| {
-                let rise = onset_rise(s, v_ref, lag(g));
+                let rise = onset_rise(s, v_ref, &|v| lag(g, v));
                 let body: Vec<f64> = s
                     .predicted
                     .iter()

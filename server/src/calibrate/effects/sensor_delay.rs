@@ -68,7 +68,7 @@ impl Effect for SensorDelay {
 fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature> {
     let grid: Vec<f64> = (1..=40).map(|k| k as f64 * 0.0025).collect();
     let (tau, predicted, readjust, _) =
-        fit_sensor_stage(series, train, base, &grid, (&delayed, &|tau| tau));
+        fit_sensor_stage(series, train, base, &grid, (&delayed, &|tau, _| tau));
     let mut params = Params::new();
     params.insert("delay_s".into(), tau.into());
     Some(Signature {

@@ -18,6 +18,7 @@
 use super::linear::*;
 use super::{Base, Effect, Parameter, Params, Region, ReportContext, Signature, number};
 use crate::calibrate::features::Series;
+use crate::calibrate::onset::touch_down_lag;
 use crate::calibrate::replay::{Model, Setup};
 use crate::sim::ft_sensor::{low_pass_lag_s, low_pass_sampled, pole_hz};
 
@@ -56,10 +57,13 @@ impl Effect for SensorFilter {
             .iter()
             .map(|&order| {
                 let stage = move |s: &Series, x: &[f64], hz: f64| low_pass(s, x, hz, order);
-                // A low-pass barely moves the contact onsets (see `Model::onset_lag_s`).
+                // What the low-pass does to a touch-down (see `onset::touch_down_lag`).
+                let lag = move |hz: f64, v: f64| {
+                    touch_down_lag(pole_hz(hz, order), order, base.c * v, base.k * v)
+                };
                 (
                     order,
-                    fit_sensor_stage(series, train, base, &grid, (&stage, &|_| 0.0)),
+                    fit_sensor_stage(series, train, base, &grid, (&stage, &lag)),
                 )
             })
             .min_by(|a, b| a.1.3.total_cmp(&b.1.3))
