@@ -470,10 +470,10 @@ fn onset_breath_shift(
 /// The body part of a replay of `recordings[index]` (see [`BodyReplay`]).
 ///
 /// A segment after a logger's pause is played from its file's first segment on, the
-/// probe's path bridged over each pause (a cubic through the gap), so the body reaches it in the
-/// state the file's history left (a relaxation loaded over seconds of holding, a breath
-/// under way); the body replay covers the history too, so the sensor's filter and delay
-/// start from it. Started afresh and settled for [`SETTLE_S`] instead, the calibrated
+/// probe's path bridged over each pause (a cubic through the gap), so the body reaches
+/// it in the state the file's history left (a relaxation loaded over seconds of
+/// holding, a breath under way); the body replay covers the history too, so the
+/// sensor's filter and delay start from it. Started afresh and settled for [`SETTLE_S`] instead, the calibrated
 /// replay of a chirp's second segment, after 4 s in contact, sat 0.45–0.64 N above the
 /// measured force under a fitted 4 s relaxation (holdout-3 seed 19: residual 0.83 and
 /// 0.55 N RMS; with the history 0.21 and 0.29 N).
