@@ -81,13 +81,19 @@ impl Approach {
 pub fn touch_down_lag(pole_hz: f64, order: u32, jump: f64, rate: f64) -> f64 {
     let low = BAND_N[0];
     let tau = 1.0 / (2.0 * std::f64::consts::PI * pole_hz);
+    let whole = f64::from(order.max(1)) * tau;
+    if jump < low && rate <= 0.0 {
+        // A probe at rest never touches down: the ramp's lag, whatever it is worth.
+        return whole;
+    }
     let plain = if jump >= low {
         0.0
     } else {
-        (low - jump) / rate.max(1e-9)
+        (low - jump) / rate
     };
-    let dt = tau / 200.0;
-    let give_up = plain + 50.0 * tau * f64::from(order.max(1));
+    let give_up = plain + 50.0 * whole;
+    // At most a million steps, however slow the approach.
+    let dt = (tau / 200.0).max(give_up / 1e6);
     let alpha = 1.0 - (-dt / tau).exp();
     let mut stages = vec![0.0; order.max(1) as usize];
     let mut t = 0.0;
@@ -102,7 +108,7 @@ pub fn touch_down_lag(pole_hz: f64, order: u32, jump: f64, rate: f64) -> f64 {
             return (t - plain).max(0.0);
         }
     }
-    f64::from(order.max(1)) * tau
+    whole
 }
 
 /// The surface height [m, world z] under `rec`'s probe at its contact onsets, if it
@@ -499,6 +505,8 @@ mod tests {
                 jump < 0.5 * full,
                 "{order}: {jump} s against a lag of {full} s"
             );
+            // A probe at rest: finite, at once.
+            assert_eq!(touch_down_lag(pole, order, 0.0, 0.0), full);
         }
     }
 
