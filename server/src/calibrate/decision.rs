@@ -56,7 +56,7 @@ pub struct Rejected {
 /// modelled (the independent nonlinear + breathing seed 3: the stiffening law failed
 /// while a 4 mm breath was unmodelled, was never tried again, and per-site scales took
 /// its place).
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Clone)]
 pub struct Failures {
     skipped: Vec<&'static str>,
     reasons: Vec<Rejected>,

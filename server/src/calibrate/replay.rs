@@ -75,6 +75,10 @@ pub struct Model {
     /// `Breathing::with_phase_track`).
     #[serde(default)]
     pub breathing_phase_track: Vec<Vec<(f64, f64)>>,
+    /// The breath's waveform: its inhale's and end-expiratory pause's shares of the
+    /// cycle (see `BreathingParams::inhale_share`; `(0.5, 0)` a sinusoid).
+    #[serde(default = "sinusoidal_breath")]
+    pub breathing_waveform: (f64, f64),
     /// Tissue mass moving with the probe \[kg\].
     pub moving_mass: f64,
     /// Constant force offset of the sensor, world z \[N\].
@@ -145,6 +149,11 @@ pub const OFFSET_REACH_M: f64 = 0.001;
 /// The offset's range without onsets \[m\].
 const OFFSET_RANGE_M: f64 = 0.02;
 
+/// The default breath's waveform: `(inhale share, pause share)` of a sinusoid.
+pub fn sinusoidal_breath() -> (f64, f64) {
+    (0.5, 0.0)
+}
+
 impl Model {
     /// The linear baseline.
     pub fn baseline(stiffness: f64, damping: f64, surface_offset: f64) -> Self {
@@ -163,6 +172,7 @@ impl Model {
             breathing_rate_slope: Vec::new(),
             breathing_phase_track: Vec::new(),
             breathing_edge_rise: 0.0,
+            breathing_waveform: sinusoidal_breath(),
             moving_mass: 0.0,
             bias: 0.0,
             delay: 0.0,
@@ -522,6 +532,8 @@ pub fn body(setup: &Setup, model: &Model, recordings: &[Recording], index: usize
                 rate_drift: 0.0,
                 phase,
                 edge_rise: model.breathing_edge_rise,
+                inhale_share: model.breathing_waveform.0,
+                pause_share: model.breathing_waveform.1,
             },
             &torso,
             0,

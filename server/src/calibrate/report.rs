@@ -66,6 +66,8 @@ fn model_json(m: &Model) -> serde_json::Value {
         "breathing_amplitude_m": m.breathing.map(|b| b.1 / 2.0),
         "breathing_rise_m": m.breathing.map(|b| b.1),
         "breathing_edge_rise": m.breathing.map(|_| m.breathing_edge_rise),
+        "breathing_inhale_share": m.breathing.map(|_| m.breathing_waveform.0),
+        "breathing_pause_share": m.breathing.map(|_| m.breathing_waveform.1),
         "moving_mass_kg": m.moving_mass,
         "sensor_bias_fz_n": m.bias,
         "sensor_delay_s": m.delay,
@@ -315,6 +317,8 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
             amplitude: a,
             rate_drift: rate_spread(&m.breathing_freq, f),
             edge_rise: m.breathing_edge_rise,
+            inhale_share: m.breathing_waveform.0,
+            pause_share: m.breathing_waveform.1,
             ..BreathingParams::default()
         }),
         ft_sensor: ft,

@@ -14,7 +14,7 @@ use super::linear::*;
 use super::{Base, Effect, Parameter, Params, Readjust, ReportContext, Signature, number};
 use crate::calibrate::features::Series;
 use crate::calibrate::replay::{Model, Setup};
-use crate::sim::torso::{rise_profile, track_at};
+use crate::sim::torso::{rise_profile, track_at, waveform};
 
 const NAME: &str = "breathing_motion";
 
@@ -64,6 +64,7 @@ impl Effect for BreathingMotion {
             .and_then(|v| serde_json::from_value(v.clone()).ok())
             .unwrap_or_default();
         model.breathing_edge_rise = number(params, "edge_rise");
+        model.breathing_waveform = (number(params, "inhale_share"), number(params, "pause_share"));
     }
 
     /// The centre rise and the profile (phases and rates stay the signature's).
@@ -74,6 +75,7 @@ impl Effect for BreathingMotion {
         model.breathing_edge_rise = baseline.breathing_edge_rise;
         model.breathing_rate_slope = baseline.breathing_rate_slope.clone();
         model.breathing_phase_track = baseline.breathing_phase_track.clone();
+        model.breathing_waveform = baseline.breathing_waveform;
     }
 
     fn parameters(&self, model: &Model) -> Vec<Parameter> {
@@ -128,14 +130,16 @@ impl Effect for BreathingMotion {
             let current = Chirp::steady(model.breathing_freq[i], t0)
                 .with_slope(model.breathing_rate_slope[i]);
             let (phase0, track0) = (model.breathing_phase[i], &model.breathing_phase_track[i]);
+            let lag = Shape::new(model.breathing_waveform.0, model.breathing_waveform.1).lag;
             let (sse_now, ..) = breathing_fit(s, &with_breath, &|t| {
-                phase0 + current.phase(t) + track_at(track0, t - t0)
+                phase0 - lag + current.phase(t) + track_at(track0, t - t0)
             });
             let (chirp, _, _, track) = track_recording(s, &with_breath, current.freq);
             let phase = |t: f64| chirp.phase(t) + track_at(&track, t - t0);
             let (sse, a, c) = breathing_fit(s, &with_breath, &phase);
             if sse < sse_now * (1.0 - 1e-6) && a.hypot(c) > 0.0 {
-                model.breathing_phase[i] = a.atan2(-c);
+                let (inhale, pause) = model.breathing_waveform;
+                model.breathing_phase[i] = a.atan2(-c) + Shape::new(inhale, pause).lag;
                 model.breathing_freq[i] = chirp.freq;
                 model.breathing_rate_slope[i] = chirp.slope;
                 model.breathing_phase_track[i] = track;
@@ -152,17 +156,23 @@ impl Effect for BreathingMotion {
             "amplitude_m": rise / RISE_PER_AMPLITUDE,
             "rise_m": rise,
             "edge_rise": model.breathing_edge_rise,
+            "inhale_share": model.breathing_waveform.0,
+            "pause_share": model.breathing_waveform.1,
         })
     }
 
     fn sentence(&self, model: &Model, _context: &ReportContext<'_>) -> String {
         let (f, rise) = model.breathing.unwrap_or((0.0, 0.0));
+        let (inhale, pause) = model.breathing_waveform;
         format!(
-            "the surface moves periodically at {f:.3} Hz ({:.1} breaths/min, ±{:.1} mm about its mean at the centre, a {:.1} mm rise, {:.0} % of that at the edges); added breathing driving the torso's top",
+            "the surface moves periodically at {f:.3} Hz ({:.1} breaths/min, ±{:.1} mm about its mean at the centre, a {:.1} mm rise, {:.0} % of that at the edges; inhaling over {:.0} % of each breath, exhaling over {:.0} %, a {:.0} % pause at end-exhale); added breathing driving the torso's top",
             f * 60.0,
             1000.0 * rise / RISE_PER_AMPLITUDE,
             1000.0 * rise,
-            100.0 * model.breathing_edge_rise
+            100.0 * model.breathing_edge_rise,
+            100.0 * inhale,
+            100.0 * (1.0 - inhale - pause),
+            100.0 * pause
         )
     }
 }
@@ -218,12 +228,49 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
         let (centre, half) = geometry;
         rise_profile([s.xy[0] - centre[0], s.xy[1] - centre[1]], half, edge)
     };
-    let rises: Vec<(f64, &Series)> = per
+    // The breath's waveform, common to all recordings (one body's breathing), over
+    // the fundamental's phases just tracked; with it each recording's amplitude.
+    let phase_of = |k: usize| {
+        let (chirp, a, c, track) = &per[k];
+        let (chirp, t0, psi0) = (*chirp, series[k].t[0], a.atan2(-*c));
+        move |t: f64| psi0 + chirp.phase(t) + track_at(track, t - t0)
+    };
+    let shape_sse = |shape: &Shape| -> (f64, Vec<f64>) {
+        let mut amplitudes = vec![0.0; series.len()];
+        let mut sse = 0.0;
+        for (k, s) in series.iter().enumerate().filter(|(k, _)| train[*k]) {
+            let phase = phase_of(k);
+            let (e, amplitude) = waveform_fit(s, &rest[k], &|t| shape.at(phase(t)));
+            sse += e;
+            amplitudes[k] = amplitude;
+        }
+        (sse, amplitudes)
+    };
+    let sinusoid = Shape::new(0.5, 0.0);
+    let (sse_sinusoid, amplitudes) = shape_sse(&sinusoid);
+    let mut waveform_choice = (sse_sinusoid, sinusoid, amplitudes);
+    for shape in Shape::grid() {
+        let (sse, amplitudes) = shape_sse(&shape);
+        if sse < waveform_choice.0 {
+            waveform_choice = (sse, shape, amplitudes);
+        }
+    }
+    if waveform_choice.0 > sse_sinusoid * (1.0 - WAVEFORM_MIN_GAIN) {
+        waveform_choice = (sse_sinusoid, sinusoid, shape_sse(&sinusoid).1);
+    }
+    let (_, breath_shape, amplitudes) = waveform_choice;
+    tracing::debug!(
+        "breathing: waveform inhale {:.3} pause {:.3}, training SSE {:.4} of the sinusoid's",
+        breath_shape.inhale,
+        breath_shape.pause,
+        waveform_choice.0 / sse_sinusoid.max(1e-300)
+    );
+    let rises: Vec<(f64, &Series)> = amplitudes
         .iter()
         .zip(series)
         .zip(train)
         .filter(|(_, t)| **t)
-        .map(|((&(_, a, c, _), s), _)| (2.0 * a.hypot(c) / k_eff, s))
+        .map(|((&amplitude, s), _)| (amplitude.abs() / k_eff, s))
         .collect();
     // From a top rising as one down to a dome: where the sites cannot tell the
     // profiles apart (one site, or sites equally far from the centre), the flat
@@ -257,32 +304,30 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
         .zip(&base)
         .enumerate()
         .map(|(k, ((s, (chirp, a, c, track)), b))| {
-            let (chirp, a, c) = (*chirp, *a, *c);
             // Held-out recordings keep only their phase and rate: the amplitude is
             // the profile's.
-            let norm = a.hypot(c).max(1e-12);
-            let amp = 0.5 * k_eff * centre_rise * profile(s, edge_rise);
-            let (a, c) = if train[k] {
-                (a, c)
+            let amplitude = if train[k] {
+                amplitudes[k]
             } else {
-                (a / norm * amp, c / norm * amp)
+                k_eff * centre_rise * profile(s, edge_rise)
             };
-            // Force ≈ k·A(1 − cos ψ)/2 with ψ = ψ₀ + φ(t), so the fitted
-            // a·sin φ + b·cos φ gives ψ₀ = atan2(a, −b); stored at the first
-            // sample, with the rate there (the chirp's reference is the first
+            // Force ≈ k·A·w(ψ) with ψ = ψ₀ + φ(t) + the waveform's lag: the fitted
+            // fundamental a·sin φ + b·cos φ gives ψ₀ = atan2(a, −b); stored at the
+            // first sample, with the rate there (the chirp's reference is the first
             // sample).
-            phases.push(a.atan2(-c) + chirp.phase(s.t[0]));
+            phases.push(a.atan2(-c) + breath_shape.lag + chirp.phase(s.t[0]));
             freqs.push(chirp.freq);
             slopes.push(chirp.slope);
             tracks.push(track.clone());
-            let at_onsets = onset_mean(s, &|t| chirp.phase(t) + track_at(track, t - s.t[0]));
+            let phase = phase_of(k);
+            let wave = |t: f64| breath_shape.at(phase(t));
+            let at_onsets = wave_at_onsets(s, &wave);
             let breath: Vec<f64> =
                 s.t.iter()
                     .zip(&s.contact)
                     .map(|(&t, &on)| {
-                        let phase = chirp.phase(t) + track_at(track, t - s.t[0]);
                         if on {
-                            a * (phase.sin() - at_onsets.0) + c * (phase.cos() - at_onsets.1)
+                            amplitude * (wave(t) - at_onsets)
                         } else {
                             0.0
                         }
@@ -331,6 +376,8 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
         (centre_rise / RISE_PER_AMPLITUDE).into(),
     );
     params.insert("edge_rise".into(), edge_rise.into());
+    params.insert("inhale_share".into(), breath_shape.inhale.into());
+    params.insert("pause_share".into(), breath_shape.pause.into());
     params.insert("phase_rad".into(), serde_json::json!(phases));
     params.insert("freq_by_recording_hz".into(), serde_json::json!(freqs));
     params.insert(
@@ -455,6 +502,107 @@ fn breathing_fit(s: &Series, residual: &[f64], phase: &dyn Fn(f64) -> f64) -> (f
         })
         .sum();
     (sse, beta[0], beta[1])
+}
+
+/// The share by which a shaped waveform must lower the training residual's SSE below the
+/// sinusoid's to be kept (two more parameters, shared by every recording).
+const WAVEFORM_MIN_GAIN: f64 = 0.01;
+
+/// A breath's waveform (see [`waveform`]) set against its fundamental: `at(φ)` is the
+/// waveform whose fundamental is `−cos φ` times a positive amplitude, so the phase the
+/// sinusoid fits track is the phase it is evaluated at.
+#[derive(Debug, Clone, Copy)]
+struct Shape {
+    inhale: f64,
+    pause: f64,
+    /// How far the waveform's own phase leads its fundamental's \[rad\].
+    lag: f64,
+}
+
+impl Shape {
+    fn new(inhale: f64, pause: f64) -> Self {
+        // The fundamental of w(ψ): α·cos ψ + β·sin ψ = −B·cos(ψ − lag).
+        const N: usize = 720;
+        let (mut alpha, mut beta) = (0.0_f64, 0.0_f64);
+        for i in 0..N {
+            let psi = std::f64::consts::TAU * (i as f64 + 0.5) / N as f64;
+            let w = waveform(psi, inhale, pause);
+            alpha += w * psi.cos();
+            beta += w * psi.sin();
+        }
+        Self {
+            inhale,
+            pause,
+            lag: (-beta).atan2(-alpha),
+        }
+    }
+
+    /// The waveform at the fundamental's phase `phi`.
+    fn at(&self, phi: f64) -> f64 {
+        waveform(phi + self.lag, self.inhale, self.pause)
+    }
+
+    /// The waveforms weighed besides the sinusoid: inhale shares 0.25–0.60 and pauses
+    /// 0–0.30 of the cycle, every 0.025 (at least 0.1 of the cycle left to the exhale).
+    fn grid() -> impl Iterator<Item = Shape> {
+        (0..=14).flat_map(|i| {
+            (0..=12).filter_map(move |p| {
+                let (inhale, pause) = (0.25 + 0.025 * i as f64, 0.025 * p as f64);
+                (inhale + pause <= 0.9 + 1e-9 && !(i == 10 && p == 0))
+                    .then(|| Shape::new(inhale, pause))
+            })
+        })
+    }
+}
+
+/// Mean of the waveform `wave(t)` at the series' contact onsets (0 without any): see
+/// [`onset_mean`].
+fn wave_at_onsets(s: &Series, wave: &dyn Fn(f64) -> f64) -> f64 {
+    if s.onsets.is_empty() {
+        return 0.0;
+    }
+    s.onsets.iter().map(|a| wave(a.t)).sum::<f64>() / s.onsets.len() as f64
+}
+
+/// One series' breath of waveform `wave(t)` fitted as [`breathing_fit`] fits a sinusoid
+/// (steady stretches with their own offsets, or every in-contact sample less the
+/// onsets' value when they are under 2 s): (SSE, amplitude).
+fn waveform_fit(s: &Series, residual: &[f64], wave: &dyn Fn(f64) -> f64) -> (f64, f64) {
+    let n = s.len();
+    let stretches = steady_stretches(s);
+    let steady_s: f64 = stretches
+        .iter()
+        .map(|r| s.t[r.end - 1] - s.t[r.start])
+        .sum();
+    let mut rows = vec![false; n];
+    let mut columns = vec![vec![0.0; n]];
+    if steady_s < 2.0 {
+        let on = wave_at_onsets(s, wave);
+        rows = vec![true; n];
+        for i in (0..n).filter(|&i| s.contact[i]) {
+            columns[0][i] = wave(s.t[i]) - on;
+        }
+    } else {
+        for r in &stretches {
+            let mut offset = vec![0.0; n];
+            for i in r.clone() {
+                rows[i] = true;
+                columns[0][i] = wave(s.t[i]);
+                offset[i] = 1.0;
+            }
+            columns.push(offset);
+        }
+    }
+    columns.extend(path_columns(s));
+    let beta = least_squares(&columns, residual, &rows);
+    let sse = (0..n)
+        .filter(|&i| rows[i])
+        .map(|i| {
+            let fit: f64 = columns.iter().zip(&beta).map(|(c, b)| c[i] * b).sum();
+            (residual[i] - fit).powi(2)
+        })
+        .sum();
+    (sse, beta[0])
 }
 
 /// A breathing oscillation whose rate changes linearly: rate `freq + slope·(t − t_ref)`.
@@ -812,6 +960,56 @@ mod tests {
         assert!((model.breathing_freq[0] - freq).abs() < 0.005 * freq);
         assert!(!BreathingMotion.refine(&mut kept, &[s], k, &[false]));
         assert_eq!(kept.breathing_phase, vec![0.0]);
+    }
+
+    /// A breath that rises over 35 % of the cycle, falls over 50 % and pauses 15 %,
+    /// held at two sites: the signature keeps that waveform (not the sinusoid) and the
+    /// rise, and its prediction leaves little more than the noise.
+    #[test]
+    fn the_signature_reads_the_breaths_waveform() {
+        let (k, rise, freq) = (2000.0, 0.003, 0.28);
+        let mut rng = Pcg64Mcg::seed_from_u64(11);
+        let t: Vec<f64> = (0..4000).map(|i| i as f64 * 0.01).collect();
+        let series: Vec<Series> = [0.4, 2.9]
+            .iter()
+            .enumerate()
+            .map(|(index, &phase0)| {
+                let residual: Vec<f64> = t
+                    .iter()
+                    .map(|&t| {
+                        let phase = phase0 + std::f64::consts::TAU * freq * t;
+                        k * rise * waveform(phase, 0.35, 0.15) + rng.random_range(-0.05..0.05)
+                    })
+                    .collect();
+                Series {
+                    index,
+                    ..held(t.clone(), residual)
+                }
+            })
+            .collect();
+        let base = Base {
+            k,
+            c: 10.0,
+            center_xy: [0.0; 2],
+            half_size: [0.15, 0.1],
+            fit_above_hz: None,
+            fit_free_air: false,
+            moving_mass: false,
+        };
+        let sig = signature(&series, &[true, true], base).expect("a breath");
+        let (inhale, pause) = (number(&sig.params, "inhale_share"), number(&sig.params, "pause_share"));
+        assert!((inhale - 0.35).abs() <= 0.03 && (pause - 0.15).abs() <= 0.03, "waveform {inhale}, {pause}");
+        let fitted_rise = RISE_PER_AMPLITUDE * number(&sig.params, "amplitude_m");
+        assert!((fitted_rise / rise - 1.0).abs() < 0.05, "rise {fitted_rise}");
+        let sse: f64 = series
+            .iter()
+            .zip(&sig.predicted)
+            .flat_map(|(s, p)| s.residual.iter().zip(p).map(|(r, p)| (r - p).powi(2)))
+            .sum();
+        // The noise alone: 6.7; a sinusoid's misfit of this waveform (17 % of the
+        // breath's RMS): ≈ 1000.
+        let noise = 2.0 * 4000.0 * 0.05_f64.powi(2) / 3.0;
+        assert!(sse < 5.0 * noise, "SSE {sse:.2}, noise alone {noise:.2}");
     }
 
     /// A hold with noise and no breathing: a track may form, but it must not make a

@@ -14,7 +14,12 @@
 //! indentation, so a probe pressed deep into stiffening tissue feels breathing more
 //! strongly than one resting on the skin.
 //!
-//! `a(t) = A·(1 − cos φ)/2` (0 at full exhalation), `φ̇ = 2π·f(t)`, and the rate drifts
+//! `a(t) = A·w(φ)` (0 at full exhalation), `φ̇ = 2π·f(t)`, where the waveform `w` (see
+//! [`waveform`]) rises over the share `inhale_share` of each breath, falls over the
+//! exhale, and holds at 0 over the end-expiratory pause `pause_share`: a respiratory
+//! cycle's inspiratory time fraction Ti/Ttot (0.35–0.45 at rest, an I:E ratio of 1:1.5 to
+//! 1:2) and its pause, which make a real breath rise faster than it falls and dwell at
+//! end-exhale. The defaults (0.5, 0) give `w = (1 − cos φ)/2`, a sinusoid. The rate drifts
 //! slowly: `f(t) = f₀·(1 + δ(t))` with `δ` an Ornstein–Uhlenbeck process (time constant
 //! 30 s, stationary standard deviation `rate_drift`), seeded.
 
@@ -44,6 +49,12 @@ pub struct BreathingParams {
     /// Rise at the top's edges as a share of the centre's, in [0, 1]: 0 a dome (the
     /// belly rises, the flanks stay), 1 the whole top rising together. Default 0.
     pub edge_rise: f64,
+    /// Share of each breath spent inhaling (the rise), Ti/Ttot, in [0.1, 0.9]. Default
+    /// 0.5 (with no pause, a sinusoid); at rest 0.35–0.45.
+    pub inhale_share: f64,
+    /// Share of each breath held fully exhaled after the exhale (the end-expiratory
+    /// pause), in [0, 0.5], with at least 0.1 left to the exhale. Default 0.
+    pub pause_share: f64,
 }
 
 impl Default for BreathingParams {
@@ -54,6 +65,8 @@ impl Default for BreathingParams {
             rate_drift: 0.05,
             phase: 0.0,
             edge_rise: 0.0,
+            inhale_share: 0.5,
+            pause_share: 0.0,
         }
     }
 }
@@ -89,6 +102,16 @@ impl BreathingParams {
         if !(0.0..=1.0).contains(&self.edge_rise) {
             return err("edge_rise", "in [0, 1]", self.edge_rise);
         }
+        if !(0.1..=0.9).contains(&self.inhale_share) {
+            return err("inhale_share", "in [0.1, 0.9]", self.inhale_share);
+        }
+        if !(0.0..=0.5).contains(&self.pause_share) || self.inhale_share + self.pause_share > 0.9 {
+            return err(
+                "pause_share",
+                "in [0, 0.5] and at most 0.9 − inhale_share",
+                self.pause_share,
+            );
+        }
         Ok(())
     }
 }
@@ -103,6 +126,22 @@ pub fn rise_profile(xy: [f64; 2], half: [f64; 2], edge_rise: f64) -> f64 {
         .cos()
         .max(0.0);
     edge_rise + (1.0 - edge_rise) * cx * cy
+}
+
+/// The breathing waveform at phase `phase` \[rad\], in [0, 1]: 0 fully exhaled at phase 0,
+/// a raised-cosine rise to 1 over the share `inhale` of the cycle, a cosine fall back to
+/// 0 over the exhale, and 0 through the end-expiratory pause `pause` (the cycle's last
+/// share). `(0.5, 0)` is `(1 − cos φ)/2`.
+pub fn waveform(phase: f64, inhale: f64, pause: f64) -> f64 {
+    let u = (phase / std::f64::consts::TAU).rem_euclid(1.0);
+    let exhale = 1.0 - inhale - pause;
+    if u < inhale {
+        0.5 * (1.0 - (std::f64::consts::PI * u / inhale).cos())
+    } else if u < inhale + exhale {
+        0.5 * (1.0 + (std::f64::consts::PI * (u - inhale) / exhale).cos())
+    } else {
+        0.0
+    }
 }
 
 /// The breathing law (see the module docs).
@@ -216,7 +255,7 @@ impl Breathing {
     /// Rise of the top's centre the drive holds now \[m\].
     pub fn offset(&self) -> f64 {
         let phase = self.phase + track_at(&self.phase_track, self.elapsed);
-        self.params.amplitude * (1.0 - phase.cos()) / 2.0
+        self.rise_at(phase)
     }
 
     /// Rise of the top's centre `elapsed` seconds after the start \[m\], from the phase,
@@ -228,7 +267,12 @@ impl Breathing {
         let phase = self.params.phase
             + std::f64::consts::TAU * (rate * elapsed + 0.5 * self.rate_slope * elapsed * elapsed)
             + track_at(&self.phase_track, elapsed);
-        self.params.amplitude * (1.0 - phase.cos()) / 2.0
+        self.rise_at(phase)
+    }
+
+    fn rise_at(&self, phase: f64) -> f64 {
+        let p = &self.params;
+        p.amplitude * waveform(phase, p.inhale_share, p.pause_share)
     }
 
     /// Particle displacements \[m\] at equilibrium under the current drive (to start an
@@ -544,5 +588,32 @@ mod tests {
             ..Default::default()
         };
         assert_eq!(bad.validate().unwrap_err().key, "rate_bpm");
+        let no_exhale = BreathingParams {
+            inhale_share: 0.6,
+            pause_share: 0.35,
+            ..Default::default()
+        };
+        assert_eq!(no_exhale.validate().unwrap_err().key, "pause_share");
+    }
+
+    /// The default waveform is the sinusoid; a shaped one peaks at the end of its
+    /// inhale, falls over the exhale and rests at 0 through the pause.
+    #[test]
+    fn the_waveform_rises_over_the_inhale_and_rests_through_the_pause() {
+        use std::f64::consts::TAU;
+        for k in 0..40 {
+            let phase = TAU * k as f64 / 40.0 - 3.0;
+            let sinusoid = (1.0 - phase.cos()) / 2.0;
+            assert!((waveform(phase, 0.5, 0.0) - sinusoid).abs() < 1e-12);
+        }
+        let (inhale, pause) = (0.35, 0.15);
+        assert!((waveform(TAU * inhale, inhale, pause) - 1.0).abs() < 1e-12);
+        assert!((waveform(TAU * inhale / 2.0, inhale, pause) - 0.5).abs() < 1e-12);
+        assert!((waveform(TAU * (inhale + 0.25), inhale, pause) - 0.5).abs() < 1e-12);
+        for u in [0.86, 0.9, 0.99] {
+            assert_eq!(waveform(TAU * u, inhale, pause), 0.0);
+        }
+        // Periodic.
+        assert!((waveform(0.3 + TAU, inhale, pause) - waveform(0.3, inhale, pause)).abs() < 1e-12);
     }
 }

@@ -27,7 +27,9 @@ mod tissue_laws;
 #[allow(clippy::module_inception)]
 mod torso;
 
-pub use breathing::{Breathing, BreathingParamError, BreathingParams, rise_profile, track_at};
+pub use breathing::{
+    Breathing, BreathingParamError, BreathingParams, rise_profile, track_at, waveform,
+};
 pub use contact::{ContactWrench, ProbeFace, ProbeKinematics};
 pub use law::{LawContext, LawTerms, LinearSpringDamper, ParticleLaw};
 pub use layout::ShellLayout;
