@@ -64,7 +64,10 @@ impl Effect for BreathingMotion {
             .and_then(|v| serde_json::from_value(v.clone()).ok())
             .unwrap_or_default();
         model.breathing_edge_rise = number(params, "edge_rise");
-        model.breathing_waveform = (number(params, "inhale_share"), number(params, "pause_share"));
+        model.breathing_waveform = (
+            number(params, "inhale_share"),
+            number(params, "pause_share"),
+        );
     }
 
     /// The centre rise and the profile (phases and rates stay the signature's).
@@ -997,10 +1000,19 @@ mod tests {
             moving_mass: false,
         };
         let sig = signature(&series, &[true, true], base).expect("a breath");
-        let (inhale, pause) = (number(&sig.params, "inhale_share"), number(&sig.params, "pause_share"));
-        assert!((inhale - 0.35).abs() <= 0.03 && (pause - 0.15).abs() <= 0.03, "waveform {inhale}, {pause}");
+        let (inhale, pause) = (
+            number(&sig.params, "inhale_share"),
+            number(&sig.params, "pause_share"),
+        );
+        assert!(
+            (inhale - 0.35).abs() <= 0.03 && (pause - 0.15).abs() <= 0.03,
+            "waveform {inhale}, {pause}"
+        );
         let fitted_rise = RISE_PER_AMPLITUDE * number(&sig.params, "amplitude_m");
-        assert!((fitted_rise / rise - 1.0).abs() < 0.05, "rise {fitted_rise}");
+        assert!(
+            (fitted_rise / rise - 1.0).abs() < 0.05,
+            "rise {fitted_rise}"
+        );
         let sse: f64 = series
             .iter()
             .zip(&sig.predicted)
