@@ -496,15 +496,22 @@ fn breathing_fit(s: &Series, residual: &[f64], phase: &dyn Fn(f64) -> f64) -> (f
         columns.push(offset);
     }
     columns.extend(path_columns(s));
-    let beta = least_squares(&columns, residual, &rows);
-    let sse = (0..n)
+    let (sse, beta) = fitted_sse(&columns, residual, &rows);
+    (sse, beta[0], beta[1])
+}
+
+/// `columns` fitted to `residual` on `rows` by least squares: (SSE on those rows, the
+/// coefficients).
+fn fitted_sse(columns: &[Vec<f64>], residual: &[f64], rows: &[bool]) -> (f64, Vec<f64>) {
+    let beta = least_squares(columns, residual, rows);
+    let sse = (0..residual.len())
         .filter(|&i| rows[i])
         .map(|i| {
             let fit: f64 = columns.iter().zip(&beta).map(|(c, b)| c[i] * b).sum();
             (residual[i] - fit).powi(2)
         })
         .sum();
-    (sse, beta[0], beta[1])
+    (sse, beta)
 }
 
 /// The share by which a shaped waveform must lower the training residual's SSE below the
@@ -597,14 +604,7 @@ fn waveform_fit(s: &Series, residual: &[f64], wave: &dyn Fn(f64) -> f64) -> (f64
         }
     }
     columns.extend(path_columns(s));
-    let beta = least_squares(&columns, residual, &rows);
-    let sse = (0..n)
-        .filter(|&i| rows[i])
-        .map(|i| {
-            let fit: f64 = columns.iter().zip(&beta).map(|(c, b)| c[i] * b).sum();
-            (residual[i] - fit).powi(2)
-        })
-        .sum();
+    let (sse, beta) = fitted_sse(&columns, residual, &rows);
     (sse, beta[0])
 }
 
