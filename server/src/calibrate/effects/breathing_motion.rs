@@ -473,10 +473,7 @@ fn steady_share_explained(
 /// chirp).
 fn breathing_fit(s: &Series, residual: &[f64], phase: &dyn Fn(f64) -> f64) -> (f64, f64, f64) {
     let stretches = steady_stretches(s);
-    let steady_s: f64 = stretches
-        .iter()
-        .map(|r| s.t[r.end - 1] - s.t[r.start])
-        .sum();
+    let steady_s = steady_seconds(s, &stretches);
     if steady_s < 2.0 {
         let (sse, a, b, _) = sinusoid_fit(s, residual, phase);
         return (sse, a, b);
@@ -580,10 +577,7 @@ fn wave_at_onsets(s: &Series, wave: &dyn Fn(f64) -> f64) -> f64 {
 fn waveform_fit(s: &Series, residual: &[f64], wave: &dyn Fn(f64) -> f64) -> (f64, f64) {
     let n = s.len();
     let stretches = steady_stretches(s);
-    let steady_s: f64 = stretches
-        .iter()
-        .map(|r| s.t[r.end - 1] - s.t[r.start])
-        .sum();
+    let steady_s = steady_seconds(s, &stretches);
     let mut rows = vec![false; n];
     let mut columns = vec![vec![0.0; n]];
     if steady_s < 2.0 {
@@ -606,6 +600,14 @@ fn waveform_fit(s: &Series, residual: &[f64], wave: &dyn Fn(f64) -> f64) -> (f64
     columns.extend(path_columns(s));
     let (sse, beta) = fitted_sse(&columns, residual, &rows);
     (sse, beta[0])
+}
+
+/// Seconds the series spends in its steady `stretches`.
+fn steady_seconds(s: &Series, stretches: &[std::ops::Range<usize>]) -> f64 {
+    stretches
+        .iter()
+        .map(|r| s.t[r.end - 1] - s.t[r.start])
+        .sum()
 }
 
 /// A breathing oscillation whose rate changes linearly: rate `freq + slope·(t − t_ref)`.
@@ -760,10 +762,7 @@ fn track_phase(
     }
     let reference = c.atan2(a);
     let stretches = steady_stretches(s);
-    let steady_s: f64 = stretches
-        .iter()
-        .map(|r| s.t[r.end - 1] - s.t[r.start])
-        .sum();
+    let steady_s = steady_seconds(s, &stretches);
     // The rows breathing_fit uses: steady stretches with their own offsets, or every
     // in-contact sample when there are under 2 s of them.
     let mut rows = vec![false; n];
