@@ -13,8 +13,10 @@ use crate::recordings::Dataset;
 use super::effects;
 use super::features::{Series, rmse};
 use super::fit::Effort;
+use super::gain::{explained_share, relative_drop};
 use super::high_pass::high_pass;
 use super::model::{FitDiagnostics, Free, Geometry, apply_effects, fit_model, remove_effect};
+use super::on_trust::{self, Outcome, Trust};
 use super::replay::{self, Model, Setup, replay_all};
 use super::split::Split;
 use super::weighing::{self, Judging, Weighing};
@@ -118,8 +120,8 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
     }
     .weighing(series, effects::Region::FreeAir)
     .is_some();
-    // A near miss held on trust (see `Pending`).
-    let mut pending: Option<Pending> = None;
+    // A near miss held on trust, with the state to return to if nothing joins it.
+    let mut trust = Trust::<Snapshot>::default();
     for _attempt in 0..6 {
         let k_now = calibrated.stiffness * k_per_unit;
         let mut skip = failures.skipped().to_vec();
@@ -384,80 +386,73 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                     });
             }
         }
-        // It passes where it is weighed without making the whole worse, or over all
-        // samples (what every effect had to do before regions: an effect fitted above
-        // the breathing band is then judged on everything it predicts).
-        // A near miss beside one held on trust may make up the share together with it.
-        let jointly = |after: f64| {
-            pending
-                .as_ref()
-                .is_some_and(|p| explained_share(p.before, after, noise) >= MIN_EXPLAINED)
-        };
-        let passes = |before: f64, after: f64| {
-            relative_drop(before, after) >= threshold
-                && (!second_chance
-                    || explained_share(before, after, noise) >= MIN_EXPLAINED
-                    || jointly(after))
-        };
-        let whole_ok = trial.after <= trial.before;
-        let in_region =
-            trial.weighed_in.is_some() && whole_ok && passes(trial.gate_before, trial.gate_after);
         let idle = effects::named(trial.effect.name).is_some_and(|e| e.idle(&trial.model));
         if idle {
             tracing::debug!("{} refitted to no effect", trial.effect.name);
         }
-        let named = !idle && (in_region || passes(trial.before, trial.after));
-        // A near miss that lowered validation by the round's bar but explained too
-        // little of the excess alone is held on trust: two effects present together
-        // each leave the other's misfit in the residual the first is judged on
-        // (holdout-3 seed 20's stiffening with breathing: the breath alone took 28 % of
-        // the excess, the stiffening alone 8 %). It stays only if an effect named
-        // beside it makes up the share together with it.
-        let on_trust = !named
-            && second_chance
-            && !idle
-            && whole_ok
-            && pending.is_none()
-            && relative_drop(trial.before, trial.after) >= threshold;
-        if named && pending.as_ref().is_some_and(|_| jointly(trial.after)) {
-            let held = pending.take().expect("checked");
-            tracing::debug!(
-                "{} named beside {}, held on trust: validation {:.4} → {:.4} N together",
-                trial.effect.name,
-                held.name,
-                held.before,
-                trial.after
-            );
-        }
+        let bar = on_trust::Bar {
+            threshold,
+            share: MIN_EXPLAINED,
+            second_chance,
+            noise,
+        };
+        let outcome = trust.judge(
+            bar,
+            on_trust::Figures {
+                before: trial.before,
+                after: trial.after,
+                region: trial
+                    .weighed_in
+                    .map(|_| (trial.gate_before, trial.gate_after)),
+                idle,
+            },
+        );
+        let (named, on_trust) = match outcome {
+            Outcome::Named => (true, false),
+            Outcome::NamedBeside(held) => {
+                tracing::debug!(
+                    "{} named beside {held}, held on trust: validation {:.4} N together",
+                    trial.effect.name,
+                    trial.after
+                );
+                trust.confirm();
+                (true, false)
+            }
+            Outcome::OnTrust => (false, true),
+            Outcome::Failed => (false, false),
+        };
         if on_trust {
+            let share = explained_share(trial.before, trial.after, noise);
             tracing::debug!(
                 "{} held on trust: validation {:.4} → {:.4} N ({:.0} % of the excess)",
                 trial.effect.name,
                 trial.before,
                 trial.after,
-                100.0 * explained_share(trial.before, trial.after, noise)
+                100.0 * share
             );
-            pending = Some(Pending {
-                name: trial.effect.name,
-                before: trial.before,
-                model: calibrated.clone(),
-                fit: calibrated_fit.clone(),
-                series: current.clone(),
-                predictions: current_predictions.clone(),
-                accepted: accepted.clone(),
-                failures: failures.clone(),
-                reason: decision::Rejected {
-                    name: trial.effect.name,
-                    why: format!(
-                        "its signature nearly passed, and modelled in the simulator the validation RMSE went {:.3} → {:.3} N ({:.0} % of the excess), but it needs {:.0} % and nothing named beside it made up the rest",
-                        trial.before,
-                        trial.after,
-                        100.0 * explained_share(trial.before, trial.after, noise),
-                        100.0 * MIN_EXPLAINED
-                    ),
-                    explained: None,
+            let snapshot = Snapshot {
+                state: Calibrated {
+                    model: calibrated.clone(),
+                    fit: calibrated_fit.clone(),
+                    series: current.clone(),
+                    predictions: current_predictions.clone(),
+                    accepted: accepted.clone(),
                 },
-            });
+                failures: failures.clone(),
+                rejected: rejected.clone(),
+            };
+            let reason = decision::Rejected {
+                name: trial.effect.name,
+                why: format!(
+                    "its signature nearly passed, and modelled in the simulator the validation RMSE went {:.3} → {:.3} N ({:.0} % of the excess), but it needs {:.0} % and nothing named beside it made up the rest",
+                    trial.before,
+                    trial.after,
+                    100.0 * share,
+                    100.0 * MIN_EXPLAINED
+                ),
+                explained: None,
+            };
+            trust.hold(trial.effect.name, trial.before, snapshot, reason);
         }
         if named || on_trust {
             try_richer(
@@ -530,16 +525,24 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
             });
         }
     }
-    // A near miss held on trust that nothing joined is taken out again.
-    if let Some(held) = pending {
-        tracing::debug!("{} held on trust, joined by nothing: taken out", held.name);
-        calibrated = held.model;
-        calibrated_fit = held.fit;
-        current = held.series;
-        current_predictions = held.predictions;
-        accepted = held.accepted;
-        failures = held.failures;
-        failures.failed(held.reason);
+    // A near miss held on trust that nothing joined is taken out again, with the
+    // reasons of the round it was tried in (the later rounds' were read with it
+    // modelled).
+    if let Some((before, reason)) = trust.settle() {
+        tracing::debug!(
+            "{} held on trust, joined by nothing: taken out",
+            reason.name
+        );
+        Calibrated {
+            model: calibrated,
+            fit: calibrated_fit,
+            series: current,
+            predictions: current_predictions,
+            accepted,
+        } = before.state;
+        failures = before.failures;
+        rejected = before.rejected;
+        failures.failed(reason);
     }
     // The backward step: each effect named before the last must still earn its place
     // beside the ones named after it.
@@ -594,20 +597,12 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
     }
 }
 
-/// A near miss named on trust: the simulator as it stood before it, to return to if no
-/// effect named beside it makes up the share of the excess it could not explain alone.
-struct Pending {
-    name: &'static str,
-    /// Validation RMSE before it \[N\].
-    before: f64,
-    model: Model,
-    fit: FitDiagnostics,
-    series: Vec<Series>,
-    predictions: Vec<replay::Prediction>,
-    accepted: Vec<decision::Accepted>,
+/// Where selection returns to if a near miss held on trust is joined by nothing.
+struct Snapshot {
+    state: Calibrated,
     failures: decision::Failures,
-    /// Why it is rejected if taken out again.
-    reason: decision::Rejected,
+    /// The reasons of the round the near miss was tried in.
+    rejected: Vec<decision::Rejected>,
 }
 
 /// The simulator as calibrated so far.
@@ -1269,21 +1264,6 @@ impl Figures {
     fn explained(&self, noise: f64) -> f64 {
         explained_share(self.before_v, self.after_v, noise)
     }
-}
-
-/// How much lower `after` is than `before`, relative to `before`.
-fn relative_drop(before: f64, after: f64) -> f64 {
-    (before - after) / before.max(1e-12)
-}
-
-/// Share of the excess of an RMSE `before` over the noise floor `noise` that going to
-/// `after` explains; 0 where there is no excess (free air is often at the floor).
-fn explained_share(before: f64, after: f64, noise: f64) -> f64 {
-    let excess = before * before - noise * noise;
-    if excess <= 1e-12 {
-        return 0.0;
-    }
-    (before * before - after * after) / excess
 }
 
 /// A candidate's signature with its figures over all samples and where it is weighed.
