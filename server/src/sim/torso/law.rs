@@ -23,6 +23,11 @@ pub struct LawContext<'a> {
     /// skin's deepest indentation (`TorsoParams::exponent`, `stiffening_depth_m`), 1
     /// without one. Elastic laws (the linear spring, breathing's drive on it) apply it.
     pub elastic_scale: f64,
+    /// Scale of every damping element this step: depth-dependent damping's `1 +
+    /// ratio·(δ/10 mm)^p` at the skin's deepest indentation, 1 without it. The dampers'
+    /// own terms get it from the solver; a law that moves their anchors (breathing's
+    /// drive) applies it to its force.
+    pub damping_scale: f64,
 }
 
 /// Per-particle terms, accumulated over laws.

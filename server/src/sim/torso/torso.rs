@@ -445,6 +445,7 @@ impl Torso {
             mass: &self.mass,
             rest: &self.layout.rest,
             elastic_scale: self.stiffening_scale,
+            damping_scale: self.damping_scale,
         };
         for law in &mut self.laws {
             law.advance(&ctx);
@@ -460,6 +461,7 @@ impl Torso {
         if let Some(law) = self.stiffening {
             self.stiffening_scale = law.secant(self.skin_indentation());
         }
+        self.damping_scale = self.depth_damping_scale();
         let ctx = LawContext {
             t: self.t,
             dt,
@@ -468,6 +470,7 @@ impl Torso {
             mass: &self.mass,
             rest: &self.layout.rest,
             elastic_scale: self.stiffening_scale,
+            damping_scale: self.damping_scale,
         };
         for law in &self.laws {
             law.add_terms(&ctx, &mut self.terms);
@@ -508,27 +511,35 @@ impl Torso {
     /// each element's own depth (the form before: on the particle dampers alone, by
     /// their own depth) let the shallower rim of the pressed patch and the coupling's
     /// damping lag behind, and an independent body's ratio of 3.2 was fitted as 17.6.
-    /// Sets `damping_scale` (the coupling's share is applied in `solve`); implicit in the
-    /// velocity.
+    /// `damping_scale` ([`Self::depth_damping_scale`], set before the laws' terms: a
+    /// law that moves the dampers' anchors applies it too); the coupling's share is
+    /// applied in `solve`; implicit in the velocity.
     fn add_depth_damping(&mut self, dt: f64) {
-        self.damping_scale = 1.0;
+        let growth = self.damping_scale - 1.0;
+        if growth <= 0.0 {
+            return;
+        }
+        for i in 0..self.u.len() {
+            let c = self.damping[i] + self.layout.ground[i] * self.edge_c;
+            self.diag[i] += dt * growth * c;
+        }
+    }
+
+    /// Depth-dependent damping's scale of every damping element at the start of the
+    /// step (1 without it, or out of contact).
+    fn depth_damping_scale(&self) -> f64 {
         let Some(DepthDamping {
             ratio_at_10mm,
             exponent,
         }) = self.params.depth_damping
         else {
-            return;
+            return 1.0;
         };
         let depth = self.deepest_indentation();
         if depth <= 0.0 {
-            return;
+            return 1.0;
         }
-        let growth = ratio_at_10mm * (depth / POWER_REFERENCE_DEPTH).powf(exponent);
-        self.damping_scale = 1.0 + growth;
-        for i in 0..self.u.len() {
-            let c = self.damping[i] + self.layout.ground[i] * self.edge_c;
-            self.diag[i] += dt * growth * c;
-        }
+        1.0 + ratio_at_10mm * (depth / POWER_REFERENCE_DEPTH).powf(exponent)
     }
 
     /// The skin's deepest indentation at the start of the step \[m\] (0 when none).
@@ -804,6 +815,7 @@ impl Torso {
             mass: &self.mass,
             rest: &self.layout.rest,
             elastic_scale: scale,
+            damping_scale: 1.0,
         };
         for law in &self.laws {
             law.add_terms(&ctx, &mut terms);
