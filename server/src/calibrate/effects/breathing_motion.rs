@@ -573,18 +573,28 @@ fn wave_at_onsets(s: &Series, wave: &dyn Fn(f64) -> f64) -> f64 {
 
 /// One series' breath of waveform `wave(t)` fitted as [`breathing_fit`] fits a sinusoid
 /// (steady stretches with their own offsets, or every in-contact sample less the
-/// onsets' value when they are under 2 s): (SSE, amplitude).
+/// onsets' value when they are under 2 s), beside its rate: (SSE, amplitude).
+///
+/// The rate's column is there because a probe holding the skin feels the tissue
+/// compressed at the breath's rate through its damping as well as its springs (`K·a +
+/// C·ȧ`, a Kelvin–Voigt body on a moving foundation; the simulator's breath does this):
+/// with damping grown by depth, `C·ȧ` is a large part of a sharp inhale's force, and a
+/// waveform judged without it takes the damping's lead for a slower rise. The rate also
+/// takes up a small error of the tracked phase (`w(ψ − δ) ≈ w(ψ) − δ·w′(ψ)`).
 fn waveform_fit(s: &Series, residual: &[f64], wave: &dyn Fn(f64) -> f64) -> (f64, f64) {
+    const H: f64 = 0.01;
+    let rate = |t: f64| (wave(t + H) - wave(t - H)) / (2.0 * H);
     let n = s.len();
     let stretches = steady_stretches(s);
     let steady_s = steady_seconds(s, &stretches);
     let mut rows = vec![false; n];
-    let mut columns = vec![vec![0.0; n]];
+    let mut columns = vec![vec![0.0; n], vec![0.0; n]];
     if steady_s < 2.0 {
         let on = wave_at_onsets(s, wave);
         rows = vec![true; n];
         for i in (0..n).filter(|&i| s.contact[i]) {
             columns[0][i] = wave(s.t[i]) - on;
+            columns[1][i] = rate(s.t[i]);
         }
     } else {
         for r in &stretches {
@@ -592,6 +602,7 @@ fn waveform_fit(s: &Series, residual: &[f64], wave: &dyn Fn(f64) -> f64) -> (f64
             for i in r.clone() {
                 rows[i] = true;
                 columns[0][i] = wave(s.t[i]);
+                columns[1][i] = rate(s.t[i]);
                 offset[i] = 1.0;
             }
             columns.push(offset);

@@ -15,8 +15,9 @@
 //! strongly than one resting on the skin.
 //!
 //! The drive moves the foundation of the particles' dampers as well as of their springs
-//! (a force `(c/k)·ȧ·d_i`), so a probe holding the skin feels the tissue's damping at the
-//! breath's rate, and a free top follows its drive without the dampers' lag.
+//! (a force `(c/k)·ȧ·d_i`, times depth-dependent damping's scale where it is set), so a
+//! probe holding the skin feels the tissue's damping at the breath's rate, and a free top
+//! follows its drive without the dampers' lag.
 //!
 //! `a(t) = A·w(φ)` (0 at full exhalation), `φ̇ = 2π·f(t)`, where the waveform `w` (see
 //! [`waveform`]) rises over the share `inhale_share` of each breath, falls over the
