@@ -182,7 +182,7 @@ impl Effect for BreathingMotion {
 
 /// The signature fitted to the training residual (see the module docs).
 fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature> {
-    let k_eff = base.k;
+    let (k_eff, base_c) = (base.k, base.c);
     let geometry = (base.center_xy, base.half_size);
     let mut params = Params::new();
     // The baseline's readjustment first, then per-recording sinusoids: breathing is
@@ -233,9 +233,14 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
     };
     // The breath's waveform, common to all recordings (one body's breathing), over
     // the fundamental's phases just tracked; with it each recording's amplitude.
+    // The force's fundamental leads the rise's by the tissue's damping (`K·a + C·ȧ`,
+    // `C/K` the body's damping over its stiffness as the baseline has them: see
+    // `waveform_fit`); the phases stored and the waveform are the rise's.
+    let damping_lead = |freq: f64| (std::f64::consts::TAU * freq * base_c / k_eff).atan();
     let phase_of = |k: usize| {
         let (chirp, a, c, track) = &per[k];
-        let (chirp, t0, psi0) = (*chirp, series[k].t[0], a.atan2(-*c));
+        let (chirp, t0) = (*chirp, series[k].t[0]);
+        let psi0 = a.atan2(-*c) - damping_lead(chirp.freq);
         move |t: f64| psi0 + chirp.phase(t) + track_at(track, t - t0)
     };
     let shape_sse = |shape: &Shape| -> (f64, Vec<f64>) {
@@ -318,7 +323,9 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
             // fundamental a·sin φ + b·cos φ gives ψ₀ = atan2(a, −b); stored at the
             // first sample, with the rate there (the chirp's reference is the first
             // sample).
-            phases.push(a.atan2(-c) + breath_shape.lag + chirp.phase(s.t[0]));
+            phases.push(
+                a.atan2(-c) - damping_lead(chirp.freq) + breath_shape.lag + chirp.phase(s.t[0]),
+            );
             freqs.push(chirp.freq);
             slopes.push(chirp.slope);
             tracks.push(track.clone());
