@@ -39,6 +39,14 @@ pub const INDISTINGUISHABLE: f64 = 0.85;
 /// LM iterations of the refit after each accepted effect (at most: a converged fit
 /// stops; 5 left a sensor delay's refit short of its optimum, losing to a filter).
 const EFFECT_ITERATIONS: usize = 10;
+/// How much worse over all samples a signature weighed in a band may leave the whole
+/// (relative RMSE): its part above the band leaks below it through the high-pass's
+/// edges, so "no worse" is a change within this, not a strict sign. Set after seeing
+/// one case (holdout-3's delay + breathing, seed 19: a delay and a filter that
+/// explained 37 % and 52 % of the excess above the band left the whole train +0.0 %
+/// and +0.1 % worse and were rejected, the delay left out); the case it was written
+/// against left the whole 31 % worse.
+const WHOLE_SLACK: f64 = 0.01;
 
 /// What selection starts from.
 pub struct Inputs<'a> {
@@ -1143,7 +1151,7 @@ fn select_effects(
         // explained 95 % of the free-air excess, but made the whole validation 31 %
         // worse, so it never reached the simulator.)
         let whole_ok = matches!(region, None | Some(effects::Region::FreeAir))
-            || (whole.gain_v() >= 0.0 && whole.gain_t() >= 0.0);
+            || (whole.gain_v() >= -WHOLE_SLACK && whole.gain_t() >= -WHOLE_SLACK);
         let gains = gate.gain_v() >= threshold && gate.gain_t() >= threshold / 2.0 && whole_ok;
         let scored = Scored {
             sig,
