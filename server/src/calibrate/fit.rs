@@ -173,7 +173,11 @@ pub fn levenberg_marquardt_blocks(
                         "LM step {iteration}: cost {cost:.6e}, the linear model promises {:+.2e} at λ {lambda:.1e}; gradient cosines [{}], step [{}]",
                         predicted / cost.max(1e-300),
                         cosines.join(", "),
-                        delta.iter().map(|d| format!("{d:+.2e}")).collect::<Vec<_>>().join(", ")
+                        delta
+                            .iter()
+                            .map(|d| format!("{d:+.2e}"))
+                            .collect::<Vec<_>>()
+                            .join(", ")
                     );
                 }
                 tiny = true;

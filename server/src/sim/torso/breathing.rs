@@ -351,6 +351,11 @@ impl ParticleLaw for Breathing {
         }
     }
 
+    /// The free top's rise here under the current drive.
+    fn foundation_rise(&self, i: usize) -> f64 {
+        self.offset() * self.response.get(i).copied().unwrap_or(0.0)
+    }
+
     fn box_clone(&self) -> Box<dyn ParticleLaw> {
         Box::new(self.clone())
     }

@@ -67,6 +67,13 @@ pub trait ParticleLaw: Send + Sync + std::fmt::Debug {
     /// state the step ended at.
     fn advance(&mut self, _ctx: &LawContext<'_>) {}
 
+    /// How far this law moves particle `i`'s foundation now \[m\] along its normal: where
+    /// the particle rests with nothing pressing it (a breath's rise; 0 for laws of the
+    /// material). Indentations are measured from there.
+    fn foundation_rise(&self, _i: usize) -> f64 {
+        0.0
+    }
+
     /// A boxed copy (snapshots clone the torso).
     fn box_clone(&self) -> Box<dyn ParticleLaw>;
 }

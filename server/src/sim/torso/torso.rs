@@ -542,10 +542,16 @@ impl Torso {
         1.0 + ratio_at_10mm * (depth / POWER_REFERENCE_DEPTH).powf(exponent)
     }
 
-    /// The skin's deepest indentation at the start of the step \[m\] (0 when none).
+    /// The skin's deepest indentation at the start of the step \[m\] (0 when none),
+    /// below where each particle would rest unpressed: a probe held while the body
+    /// inhales sinks deeper into the tissue as the foundation rises under it (the
+    /// signature's depth and an independent body's `h(t) − z` both count the breath).
     fn deepest_indentation(&self) -> f64 {
         let top = self.layout.top_len();
-        self.u[..top].iter().fold(0.0f64, |m, &u| m.max(-u))
+        self.u[..top].iter().enumerate().fold(0.0f64, |m, (i, &u)| {
+            let rise: f64 = self.laws.iter().map(|law| law.foundation_rise(i)).sum();
+            m.max(rise - u)
+        })
     }
 
     /// The smooth skin's indentation over the deepest particle at the start of the step
@@ -931,6 +937,39 @@ mod tests {
 
     fn level_probe(x: f64, y: f64, z: f64, vz: f64) -> ProbeKinematics {
         ProbeKinematics::upright([x, y, z], [0.0, 0.0, vz])
+    }
+
+    /// A probe held 10 mm below the rest top while the body breathes 4 mm: the tissue
+    /// under it is indented by the breath's rise too, so the depth that depth-dependent
+    /// damping grows with swings by about the breath (it was pinned at the probe's
+    /// depth: the probe holds the particle under it where it is).
+    #[test]
+    fn a_held_probe_sinks_deeper_into_an_inhaling_body() {
+        let mut torso = Torso::new(TorsoParams::default(), ProbeFace::default()).unwrap();
+        let amplitude = 0.004;
+        let breathing = crate::sim::torso::BreathingParams {
+            rate_drift: 0.0,
+            amplitude,
+            ..Default::default()
+        };
+        let law = crate::sim::torso::Breathing::new(breathing, &torso, 1).unwrap();
+        torso.add_law(Box::new(law));
+        let c = torso.params().center_xy;
+        let probe = level_probe(c[0], c[1], torso.params().top_z() - 0.01, 0.0);
+        let (mut low, mut high) = (f64::INFINITY, f64::NEG_INFINITY);
+        for step in 0..5000 {
+            torso.step(0.002, Some(&probe));
+            if step > 1000 {
+                let depth = torso.deepest_indentation();
+                low = low.min(depth);
+                high = high.max(depth);
+            }
+        }
+        let swing = high - low;
+        assert!(
+            (0.7 * amplitude..1.3 * amplitude).contains(&swing),
+            "depth {low} .. {high} m through a {amplitude} m breath"
+        );
     }
 
     #[test]
