@@ -37,7 +37,8 @@ def load_report(out: str | Path) -> dict[str, Any]:
 
 def load_replay(out: str | Path, recording: str) -> dict[str, list[float]]:
     """The replay of one recording (a file name from the report's split): a column per
-    series, ``t`` [s] and ``fz_measured``/``fz_baseline``/``fz_calibrated`` [N] among them."""
+    series, ``t`` [s] and ``fz_measured``/``fz_baseline``/``fz_calibrated`` [N] among them
+    (``fx_*`` and ``fy_*`` the same for the sideways force)."""
     # A segment of a file cut at a gap is listed as `file.csv#k`, replayed to `file#k.csv`
     # (server/src/calibrate/report.rs).
     file, _, segment = recording.partition("#")

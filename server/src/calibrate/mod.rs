@@ -156,6 +156,8 @@ pub struct Outcome {
     pub series: Vec<Series>,
     /// Calibrated prediction per recording.
     pub calibrated_fz: Vec<Vec<f64>>,
+    /// Calibrated sideways prediction (`fx, fy`) per recording.
+    pub calibrated_fxy: Vec<Vec<[f64; 2]>>,
     /// Noise floor \[N\].
     pub noise: f64,
     /// How the noise floor was measured.
@@ -249,6 +251,7 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
         rejected,
         verdict,
         calibrated_fz,
+        calibrated_fxy,
     } = selected;
 
     progress.stage("writing the report");
@@ -263,6 +266,7 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
         calibrated_fit,
         series,
         calibrated_fz,
+        calibrated_fxy,
         noise,
         noise_source,
         mismatch: located,

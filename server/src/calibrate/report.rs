@@ -1,6 +1,6 @@
 //! Outputs of a calibration run (in OUT_DIR): `report.json`
 //! (`echogym-calibration-report/1`), `report.md`, `replay/<recording>.csv`
-//! (`t,fz_measured,fz_baseline,fz_calibrated`), `calibrated.toml` (the scene config of the
+//! (`t`, then measured, baseline and calibrated `fz`, `fx`, `fy`), `calibrated.toml` (the scene config of the
 //! calibrated torso, breathing and sensor), and `thesis_method.csv` (the points of the
 //! thesis's regression, for the plot). The PNG plots are drawn from these files by the
 //! Python package (`echogym calibrate` from the virtualenv draws them).
@@ -45,6 +45,28 @@ fn rmse_of(outcome: &Outcome, indices: &[usize], calibrated: bool) -> f64 {
             } else {
                 s.residual.clone()
             }
+        })
+        .collect();
+    let refs: Vec<&[f64]> = rs.iter().map(|r| r.as_slice()).collect();
+    rmse(&refs)
+}
+
+/// RMSE of the sideways force (`fx, fy` pooled) over `indices`, baseline or calibrated.
+fn sideways_rmse_of(outcome: &Outcome, indices: &[usize], calibrated: bool) -> f64 {
+    let rs: Vec<Vec<f64>> = indices
+        .iter()
+        .map(|&i| {
+            let s = &outcome.series[i];
+            let predicted = if calibrated {
+                &outcome.calibrated_fxy[i]
+            } else {
+                &s.predicted_xy
+            };
+            s.measured_xy
+                .iter()
+                .zip(predicted)
+                .flat_map(|(m, p)| [m[0] - p[0], m[1] - p[1]])
+                .collect()
         })
         .collect();
     let refs: Vec<&[f64]> = rs.iter().map(|r| r.as_slice()).collect();
@@ -107,6 +129,8 @@ struct Figures {
     train: [f64; 2],
     validation: [f64; 2],
     test: [f64; 2],
+    /// The sideways force's (`fx, fy`): train, validation, test, each before and after.
+    sideways: [[f64; 2]; 3],
 }
 
 /// Below this ratio of the test RMSE before calibration to the noise floor, the test
@@ -117,10 +141,21 @@ pub const CAPTURE_MIN_RATIO: f64 = 1.3;
 impl Figures {
     fn of(o: &Outcome) -> Self {
         let both = |idx: &[usize]| [rmse_of(o, idx, false), rmse_of(o, idx, true)];
+        let sideways = |idx: &[usize]| {
+            [
+                sideways_rmse_of(o, idx, false),
+                sideways_rmse_of(o, idx, true),
+            ]
+        };
         Self {
             train: both(&o.split.train),
             validation: both(&o.split.validation),
             test: both(&o.split.test),
+            sideways: [
+                sideways(&o.split.train),
+                sideways(&o.split.validation),
+                sideways(&o.split.test),
+            ],
         }
     }
 
@@ -131,6 +166,12 @@ impl Figures {
         (self.test[0] > CAPTURE_MIN_RATIO * noise)
             .then(|| (self.test[0] - self.test[1]) / (self.test[0] - noise).max(1e-12))
     }
+}
+
+/// The sideways RMSEs of the baseline (`which` 0) or the calibration (1).
+fn sideways_json(fig: &Figures, which: usize) -> serde_json::Value {
+    let [train, validation, test] = fig.sideways.map(|pair| pair[which]);
+    serde_json::json!({"train": train, "validation": validation, "test": test})
 }
 
 fn diagnostics_json(d: &FitDiagnostics) -> serde_json::Value {
@@ -217,6 +258,7 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
             "rmse_validation_n": fig.validation[0],
             "rmse_test_n": fig.test[0],
             "rmse_heldout_n": fig.test[0],
+            "sideways_rmse_n": sideways_json(&fig, 0),
         },
         "mismatch": o.mismatch.spans,
         "mismatch_shares": {
@@ -237,6 +279,7 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
             "rmse_validation_n": fig.validation[1],
             "rmse_test_n": fig.test[1],
             "rmse_heldout_n": fig.test[1],
+            "sideways_rmse_n": sideways_json(&fig, 1),
         },
         "improvement": {
             "set": "test",
@@ -282,12 +325,24 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
             format!("{stem}#{segment}")
         };
         let path = out.join("replay").join(format!("{stem}.csv"));
-        let mut text = String::from("t,fz_measured,fz_baseline,fz_calibrated\n");
+        let mut text = String::from(
+            "t,fz_measured,fz_baseline,fz_calibrated,fx_measured,fx_baseline,fx_calibrated,fy_measured,fy_baseline,fy_calibrated\n",
+        );
         for k in 0..s.len() {
+            let (m, b, c) = (s.measured_xy[k], s.predicted_xy[k], o.calibrated_fxy[i][k]);
             let _ = writeln!(
                 text,
-                "{:.6},{:.5},{:.5},{:.5}",
-                s.t[k], s.measured[k], s.predicted[k], o.calibrated_fz[i][k]
+                "{:.6},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5}",
+                s.t[k],
+                s.measured[k],
+                s.predicted[k],
+                o.calibrated_fz[i][k],
+                m[0],
+                b[0],
+                c[0],
+                m[1],
+                b[1],
+                c[1]
             );
         }
         std::fs::write(&path, text).map_err(io_error(&path))?;
@@ -568,6 +623,18 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
         "| | train RMSE | validation RMSE | test RMSE |\n|---|---:|---:|---:|\n| baseline | {:.3} N | {:.3} N | {:.3} N |\n| calibrated | {:.3} N | {:.3} N | {:.3} N |\n",
         fig.train[0], fig.validation[0], fig.test[0], fig.train[1], fig.validation[1], fig.test[1]
     );
+    // An effect seen in the sideways force changes that force, not fz: its figures too.
+    let sideways_named = o.accepted.iter().any(|a| {
+        effects::named(a.name).is_some_and(|e| e.channel() == super::features::Channel::Lateral)
+    });
+    if sideways_named {
+        let [train, validation, test] = fig.sideways;
+        let _ = writeln!(
+            s,
+            "Sideways force (fx, fy), where an effect named above shows: RMSE train {:.3} → {:.3} N, validation {:.3} → {:.3} N, test {:.3} → {:.3} N.\n",
+            train[0], train[1], validation[0], validation[1], test[0], test[1]
+        );
+    }
     let captured = match fig.capture(o.noise) {
         Some(c) => format!("{:.0} % of the excess over the noise floor", 100.0 * c),
         None => format!(

@@ -84,6 +84,8 @@ pub struct Selection {
     pub verdict: unexplained::Verdict,
     /// Calibrated prediction per recording.
     pub calibrated_fz: Vec<Vec<f64>>,
+    /// Calibrated sideways prediction (`fx, fy`) per recording.
+    pub calibrated_fxy: Vec<Vec<[f64; 2]>>,
 }
 
 /// Run the selection.
@@ -594,7 +596,10 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
     rejected.extend(failed);
     let heldout = split.heldout();
     let verdict = unexplained::assess(&current, &heldout, noise, closest);
-    let calibrated_fz = current_predictions.into_iter().map(|p| p.fz).collect();
+    let (calibrated_fz, calibrated_fxy) = current_predictions
+        .into_iter()
+        .map(|p| (p.fz, p.fxy))
+        .unzip();
     Selection {
         calibrated,
         calibrated_fit,
@@ -602,6 +607,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
         rejected,
         verdict,
         calibrated_fz,
+        calibrated_fxy,
     }
 }
 
