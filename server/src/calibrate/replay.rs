@@ -949,6 +949,20 @@ mod tests {
         }
     }
 
+    /// A recording of the probe at positions `p` with zero measured velocity (a hold)
+    /// and no force.
+    fn still_path(t: Vec<f64>, p: Vec<[f64; 3]>) -> Recording {
+        let n = t.len();
+        Recording {
+            t,
+            p,
+            f: vec![[0.0; 3]; n],
+            v: vec![[0.0; 3]; n],
+            torque: None,
+            velocity_measured: true,
+        }
+    }
+
     /// A scene of `torso` alone: no sites, no session, the surface at its top.
     fn flat_setup(torso: TorsoParams) -> Setup {
         Setup {
@@ -1021,14 +1035,10 @@ mod tests {
         let model = Model::baseline(1324.17, 17.59, 0.0);
         let n = 2000;
         let z = setup.nominal_surface_z - 0.006;
-        let rec = Recording {
-            t: (0..n).map(|k| k as f64 * 1e-3).collect(),
-            p: vec![[0.0, 0.0, z]; n],
-            f: vec![[0.0; 3]; n],
-            v: vec![[0.0; 3]; n],
-            torque: None,
-            velocity_measured: true,
-        };
+        let rec = still_path(
+            (0..n).map(|k| k as f64 * 1e-3).collect(),
+            vec![[0.0, 0.0, z]; n],
+        );
         let pred = replay(&setup, &model, std::slice::from_ref(&rec), 0);
         let held = pred.fz[n - 1];
         assert!(held > 1.0, "held force {held} N");
@@ -1055,14 +1065,7 @@ mod tests {
                 [wander, 0.5 * wander, z]
             })
             .collect();
-        let rec = Recording {
-            t,
-            p,
-            f: vec![[0.0; 3]; n],
-            v: vec![[0.0; 3]; n],
-            torque: None,
-            velocity_measured: true,
-        };
+        let rec = still_path(t, p);
         let pred = replay(&setup, &model, std::slice::from_ref(&rec), 0);
         let held = pred.fz[n - 1];
         assert!(held > 1.0, "held force {held} N");
