@@ -510,7 +510,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                         "its signature passed"
                     },
                     if idle {
-                        "its refit left it doing nothing (its parameter at the no-effect end) and "
+                        "its refit left it too small to name (at or near its no-effect end) and "
                     } else {
                         ""
                     },
