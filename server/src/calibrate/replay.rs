@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 
 use super::geometry::{self, PathSurface, SiteSurface};
 use super::onset::{Approach, median};
-use super::session::SessionClock;
+use super::session::{SessionClock, settled_share};
 use crate::recordings::Recording;
 use crate::sim::ft_sensor::{low_pass_sampled, pole_hz};
 use crate::sim::torso::{
@@ -96,6 +96,10 @@ pub struct Model {
     /// (`bias` is the value at the first).
     #[serde(default)]
     pub bias_drift_n: f64,
+    /// How the drift settles: the session's length over the settling time constant
+    /// (0: a linear drift; see [`super::session::settled_share`]).
+    #[serde(default)]
+    pub bias_drift_settle: f64,
     /// Damping growing with indentation.
     #[serde(default)]
     pub depth_damping: Option<DepthDamping>,
@@ -179,6 +183,7 @@ impl Model {
             filter_cutoff_hz: 0.0,
             filter_order: 1,
             bias_drift_n: 0.0,
+            bias_drift_settle: 0.0,
             depth_damping: None,
             friction: 0.0,
             friction_viscous: 0.0,
@@ -199,6 +204,7 @@ impl Model {
             filter_cutoff_hz: 0.0,
             filter_order: 1,
             bias_drift_n: 0.0,
+            bias_drift_settle: 0.0,
             lateral_share: [0.0; 2],
             site_lateral_share: Vec::new(),
             ..self.clone()
@@ -788,7 +794,8 @@ pub fn sense(
     let mut out = Prediction::default();
     for (i, &t) in recording.t.iter().enumerate() {
         let f = interp(sim_t, &sim_f, t - model.delay);
-        let drift = model.bias_drift_n * setup.session.share(index, t);
+        let drift = model.bias_drift_n
+            * settled_share(setup.session.share(index, t), model.bias_drift_settle);
         out.fz.push(f + model.bias + drift);
         out.fxy.push([
             interp(sim_t, &sim_fx, t - model.delay) + sx * f,

@@ -96,6 +96,7 @@ fn model_json(m: &Model) -> serde_json::Value {
         "sensor_low_pass_hz": m.filter_cutoff_hz,
         "sensor_low_pass_order": m.filter_order,
         "sensor_bias_drift_n": m.bias_drift_n,
+        "sensor_bias_drift_settle": m.bias_drift_settle,
         "depth_damping": m.depth_damping,
         "friction": m.friction,
         "friction_viscous_ns_per_m": m.friction_viscous,
@@ -364,7 +365,9 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
     ft.delay_s = m.delay;
     ft.low_pass_hz = m.filter_cutoff_hz;
     ft.low_pass_order = m.filter_order;
-    ft.bias_drift[2] = -m.bias_drift_n / o.setup.session.length().max(1e-9);
+    let (rate, settle_s) = effects::drift_start_rate(m, o.setup.session.length().max(1e-9));
+    ft.bias_drift[2] = -rate;
+    ft.bias_settle_s = settle_s.unwrap_or(0.0);
     let scene = CalibratedScene {
         torso: o.setup.torso_params(m),
         breathing: m.breathing.map(|(f, a)| BreathingParams {

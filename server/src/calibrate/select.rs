@@ -1545,6 +1545,38 @@ mod tests {
         );
     }
 
+    /// A sensor warming up: its zero drifts 1.2 N over the session, settling with a time
+    /// constant of half the session. The signature reads the settling from the grid and
+    /// the change; the same change made linear stays linear.
+    #[test]
+    fn a_drift_that_settles_is_read_as_one_and_a_linear_one_stays_linear() {
+        use crate::calibrate::session::settled_share;
+        let (start, total) = (0.3, 1.2);
+        let train = |n: usize| (0..n).map(|k| k % 3 != 2).collect::<Vec<bool>>();
+        let drift = effects::named("bias_drift").expect("in the catalogue");
+        for settle in [2.0, 0.0] {
+            let mut series = presses(start);
+            for s in &mut series {
+                for i in 0..s.len() {
+                    let d = total * settled_share(s.session[i], settle);
+                    s.measured[i] += d;
+                    s.residual[i] += d;
+                }
+            }
+            let sig = drift
+                .signature(&series, &train(series.len()), test_base(true))
+                .expect("a signature");
+            let read = |key: &str| sig.params[key].as_f64().unwrap_or(f64::NAN);
+            assert!(
+                read("settle") == settle
+                    && (read("total_n") - total).abs() < 0.05
+                    && (read("fz_n") - start).abs() < 0.03,
+                "drawn settle {settle}: read {:?}",
+                sig.params
+            );
+        }
+    }
+
     /// A sensor low-pass of one pole or two, on oscillations at 0.7–6 Hz: the
     /// signature reads the pole count and the cut-off (3 dB down) of each.
     #[test]

@@ -83,6 +83,18 @@ impl SessionClock {
     }
 }
 
+/// How far a drift that settles has got at `share` of the session, as a share of its
+/// whole change over the session: `(1 − e^(−settle·share)) / (1 − e^(−settle))`, a
+/// first-order settling (a strain-gauge sensor warming up) whose time constant is the
+/// session's length over `settle`; `settle` 0 is a linear drift (`share`).
+pub fn settled_share(share: f64, settle: f64) -> f64 {
+    if settle < 1e-6 {
+        share
+    } else {
+        (-settle * share).exp_m1() / (-settle).exp_m1()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -61,9 +61,13 @@ pub fn low_pass_lag_s(cutoff_hz: f64, order: u32) -> f64 {
 pub struct FtSensorParams {
     /// Constant offset added to `[fx, fy, fz, tx, ty, tz]` [N, N·m]. Default zeros.
     pub bias: [f64; 6],
-    /// Linear change of the bias per second of sensor time, `[fx, fy, fz, tx, ty, tz]`
-    /// [N/s, N·m/s] (thermal drift). Default zeros.
+    /// Change of the bias per second of sensor time at its start, `[fx, fy, fz, tx, ty,
+    /// tz]` [N/s, N·m/s] (thermal drift). Default zeros.
     pub bias_drift: [f64; 6],
+    /// Time constant the drift settles with \[s\]: a strain gauge warming up drifts
+    /// fast at first and settles, `bias + bias_drift·τ·(1 − e^(−t/τ))`. 0 (default): the
+    /// drift stays linear, `bias + bias_drift·t`.
+    pub bias_settle_s: f64,
     /// Standard deviation of force noise \[N\]. Default 0.
     pub force_noise: f64,
     /// Standard deviation of torque noise [N·m]. Default 0.
@@ -85,6 +89,7 @@ impl Default for FtSensorParams {
         Self {
             bias: [0.0; 6],
             bias_drift: [0.0; 6],
+            bias_settle_s: 0.0,
             force_noise: 0.0,
             torque_noise: 0.0,
             low_pass_hz: 0.0,
@@ -122,6 +127,7 @@ impl FtSensorParams {
         for (key, v) in [
             ("force_noise", self.force_noise),
             ("torque_noise", self.torque_noise),
+            ("bias_settle_s", self.bias_settle_s),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return err(key, "finite and ≥ 0", v);
@@ -194,8 +200,14 @@ impl FtSensor {
         }
         let mut out = *self.history.front().expect("just pushed");
         self.elapsed += dt;
+        let tau = self.params.bias_settle_s;
+        let drifted = if tau > 0.0 {
+            -tau * (-self.elapsed / tau).exp_m1()
+        } else {
+            self.elapsed
+        };
         for (i, v) in out.iter_mut().enumerate() {
-            *v += self.params.bias[i] + self.params.bias_drift[i] * self.elapsed;
+            *v += self.params.bias[i] + self.params.bias_drift[i] * drifted;
             let std = if i < 3 {
                 self.params.force_noise
             } else {
@@ -282,6 +294,32 @@ mod tests {
             );
         }
         assert!((pole_hz(14.256, 2) - 14.256 / 0.6436).abs() < 0.01);
+    }
+
+    #[test]
+    fn a_settling_drift_starts_at_its_rate_and_levels_off() {
+        // 0.01 N/s at first, settling with τ = 100 s: 0.63 N after 100 s, ≤ 1 N ever.
+        let mut sensor = FtSensor::new(
+            FtSensorParams {
+                bias_drift: [0.0, 0.0, 0.01, 0.0, 0.0, 0.0],
+                bias_settle_s: 100.0,
+                ..FtSensorParams::default()
+            },
+            0,
+        );
+        let read: Vec<f64> = (0..3000)
+            .map(|_| sensor.measure([0.0; 6], 0.1)[2])
+            .collect();
+        assert!((read[0] - 0.001).abs() < 1e-5, "first step {}", read[0]);
+        assert!((read[999] - 0.632).abs() < 1e-3, "after τ {}", read[999]);
+        assert!((read[2999] - 0.950).abs() < 1e-3, "after 3τ {}", read[2999]);
+        let linear = FtSensorParams {
+            bias_drift: [0.0, 0.0, 0.01, 0.0, 0.0, 0.0],
+            ..FtSensorParams::default()
+        };
+        let mut sensor = FtSensor::new(linear, 0);
+        let last = (0..3000).map(|_| sensor.measure([0.0; 6], 0.1)[2]).last();
+        assert!((last.unwrap_or_default() - 3.0).abs() < 1e-9);
     }
 
     #[test]

@@ -8,7 +8,7 @@
 //! | `sensor_bias` | a constant, also in free air | sensor bias (`ft_sensor.bias`) |
 //! | `sensor_delay` | `F(t − τ) − F(t)`: residual follows `−τ·dF/dt` | sensor delay stage (`ft_sensor.delay_s`) |
 //! | `sensor_filter` | `LP(F) − F`, one pole or two: lags and attenuates fast changes | sensor low-pass (`ft_sensor.low_pass_hz`, `low_pass_order`) |
-//! | `bias_drift` | `b₀ + Δ·(t_session − t₀)/T`, also in free air | drifting sensor bias (`ft_sensor.bias_drift`) |
+//! | `bias_drift` | `b₀ + Δ·g((t_session − t₀)/T)`, also in free air; `g` linear or a first-order settling (a warm-up) | drifting sensor bias (`ft_sensor.bias_drift`, `ft_sensor.bias_settle_s`) |
 //! | `tissue_inertia` | `−m·a_z` while touching | moving mass (`torso.moving_mass`) |
 //! | `nonlinear_stiffness` | `k·(δ₀(δ/δ₀)ⁿ − δ)` or `k·(δ₀(e^{δ/d} − 1)/(e^{δ₀/d} − 1) − δ)` (the better) plus a stiffness change, in contact | stiffening spring: power law (`torso.exponent`) or Fung's exponential (`torso.stiffening_depth_m`) |
 //! | `viscoelastic_relaxation` | `k_m·(δ − x)`, `ẋ = (δ − x)/τ`: relaxes during holds, memory between pushes | Maxwell branch (`torso.relaxation`) |
@@ -39,6 +39,7 @@ mod sliding_friction;
 mod tissue_inertia;
 mod viscoelastic_relaxation;
 
+pub use bias_drift::start_rate as drift_start_rate;
 pub use breathing_motion::FASTEST_HZ as FASTEST_BREATHING_HZ;
 pub use linear::{readjust_columns, readjusted};
 
