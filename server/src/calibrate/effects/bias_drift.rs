@@ -22,7 +22,7 @@ use crate::calibrate::session::settled_share;
 
 const NAME: &str = "bias_drift";
 
-/// Settling grids the signature tries (the session's length over the time constant;
+/// Settlings the signature tries (the session's length over the time constant;
 /// 0: linear): time constants from a fifth of the session to twice it.
 const SETTLE_GRID: [f64; 7] = [0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 5.0];
 /// A settling drift is chosen over a linear one when it lowers the training SSE by at
