@@ -23,6 +23,7 @@ pub mod decision;
 pub mod effects;
 pub mod features;
 pub mod fit;
+pub mod free_air;
 pub mod gain;
 pub mod geometry;
 pub mod high_pass;

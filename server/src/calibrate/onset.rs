@@ -25,17 +25,12 @@
 //! the phase (the median over approaches helps); a recording that starts in contact has
 //! no onset (its surface is fitted instead).
 
+use super::free_air::free_air_level;
 use crate::recordings::Recording;
 
-/// Free-air level: the median force over the recording's stretch of this length with
-/// the lowest median \[s\].
-const FREE_AIR_S: f64 = 0.3;
 /// The onset band above the free-air level \[N\]: its lower edge is at least this, or
 /// 5 σ of the free-air force.
 const BAND_N: [f64; 2] = [0.15, 1.5];
-/// Stretches whose median force is within this of the lowest one's are free air \[N\]
-/// (a third of the band's top: contact pushes harder).
-const FREE_AIR_SPAN_N: f64 = BAND_N[1] / 3.0;
 /// Probe speed down [m/s] that counts as an approach.
 const APPROACH_SPEED: f64 = 0.0005;
 /// At least this many samples in the band for a line.
@@ -44,8 +39,6 @@ const MIN_BAND_SAMPLES: usize = 4;
 /// [`LOCAL_LEVEL_GAP_S`] before the band.
 const LOCAL_LEVEL_S: f64 = 0.3;
 const LOCAL_LEVEL_GAP_S: f64 = 0.02;
-/// The probe is in free air this far above an onset it found \[m\].
-const LIFTED_M: f64 = 0.001;
 /// An approach counts after at least this long at the free-air level \[s\] (a hover
 /// between presses lasts longer; a chirp's up-swing, shorter).
 pub const MIN_FREE_AIR_S: f64 = 0.2;
@@ -149,49 +142,26 @@ pub fn reference_speed<'a>(recordings: impl Iterator<Item = &'a [Approach]>) -> 
 /// Each approach from free air in `rec` and the skin its contact onset read.
 pub fn approaches(rec: &Recording) -> Vec<Approach> {
     let n = rec.len();
-    // Free air: the stretches of FREE_AIR_S whose median force is within
-    // FREE_AIR_SPAN_N of the lowest one (the probe only pushes), not the first one — a
-    // recording that starts in contact (a segment after a logger's pause) would take a
-    // contact force for the free-air level, and every later onset would land where the
-    // force reached it again: 1.5 mm deep on a blind generator's segment. The level is
-    // the median of their medians, not the lowest: a sensor's zero that wanders (coloured
-    // noise) has its lowest stretch 0.14 N under its typical one (holdout-3 seed 13),
-    // and with the level there every wander crossed the band, so no press counted as an
-    // approach from free air.
-    let mut stretches: Vec<(f64, Vec<f64>)> = Vec::new();
-    let mut from = 0;
-    while from < n {
-        let stretch: Vec<f64> = (from..n)
-            .take_while(|&i| rec.t[i] - rec.t[from] < FREE_AIR_S)
-            .map(|i| rec.f[i][2])
-            .collect();
-        from += stretch.len().max(1);
-        if stretch.len() >= MIN_BAND_SAMPLES {
-            stretches.push((median(stretch.clone()), stretch));
-        }
-    }
-    let Some(lowest) = stretches.iter().map(|s| s.0).min_by(f64::total_cmp) else {
+    // The free-air level through the recording (see `free_air`): not the first
+    // stretch's — a recording that starts in contact (a segment after a logger's pause)
+    // would take a contact force for it, and every later onset would land where the
+    // force reached it again (1.5 mm deep on a blind generator's segment); not one level
+    // for the whole recording — a drifting zero then reads the free air at one end as
+    // contact, and the presses there find no onset (holdout-3 seed 24).
+    let Some(level) = free_air_level(rec) else {
         return Vec::new();
     };
-    let free: Vec<&(f64, Vec<f64>)> = stretches
-        .iter()
-        .filter(|s| s.0 < lowest + FREE_AIR_SPAN_N)
-        .collect();
-    let mut level = median(free.iter().map(|s| s.0).collect());
-    // The fast noise: the spread within each stretch, the median over them.
-    let spread = median(
-        free.iter()
-            .map(|(m, stretch)| median(stretch.iter().map(|f| (f - m).abs()).collect()))
-            .collect(),
-    ) / 0.6745;
+    let spread = level.spread;
     let low = BAND_N[0].max(5.0 * spread);
     let high = BAND_N[1].max(3.0 * low);
     let mut onsets = Vec::new();
     // Where the current stretch at the free-air level began.
     let mut free_from = 0;
     let mut i = 0;
+    // The force above free air at sample `k`.
+    let above = |k: usize| rec.f[k][2] - level.at(rec.t[k]);
     while i < n {
-        if rec.f[i][2] - level < low {
+        if above(i) < low {
             i += 1;
             continue;
         }
@@ -205,19 +175,19 @@ pub fn approaches(rec: &Recording) -> Vec<Approach> {
             let mut end = i;
             while end < n
                 && rec.v[end][2] < 0.0
-                && rec.f[end][2] - level < 4.0 * high
-                && (rec.f[end][2] - level < high || end - start < MIN_BAND_SAMPLES)
+                && above(end) < 4.0 * high
+                && (above(end) < high || end - start < MIN_BAND_SAMPLES)
             {
                 end += 1;
             }
             // Coloured sensor noise can cross `low` in free air, millimetres above the
             // skin, while the probe comes down: the band is the last run above `low`
             // before the force reaches `high`, and its level the free air just before.
-            // Twice: the level just before the run found with the recording's level may
-            // find a later run, or an earlier start where the zero had wandered below the
-            // recording's level.
+            // Twice: the level just before the run found with the recording's free-air
+            // curve may find a later run, or an earlier start where the zero had
+            // wandered below the curve.
             let mut first = start;
-            let mut local = level;
+            let mut local = level.at(rec.t[start]);
             for _ in 0..2 {
                 for k in (free_from..end).rev() {
                     if rec.f[k][2] - local < low {
@@ -231,7 +201,7 @@ pub fn approaches(rec: &Recording) -> Vec<Approach> {
             while last < n
                 && last - first < MIN_BAND_SAMPLES
                 && rec.v[last][2] < 0.0
-                && rec.f[last][2] - level < 4.0 * high
+                && above(last) < 4.0 * high
             {
                 last += 1;
             }
@@ -261,33 +231,11 @@ pub fn approaches(rec: &Recording) -> Vec<Approach> {
                     speed: -rec.v[first][2],
                     xy: [rec.p[first][0], rec.p[first][1]],
                 });
-                // Free air again once the probe is back above this skin and the force
-                // back near its level: the level is read there afresh (the sensor's
-                // zero may have drifted meanwhile). Both: a slide climbs a sloped skin
-                // in contact, its probe rising above the onset it began at while it
-                // still pushes (holdout-3 seed 23: 3.4 N read as the free-air level
-                // 4 s into a slide, whose next push down then read a skin 1.1 mm too
-                // high, the median of its two onsets).
-                let mut k = end.max(last);
-                while k < n && (rec.p[k][2] < z + LIFTED_M || rec.f[k][2] - level >= low) {
-                    k += 1;
-                }
-                let lifted: Vec<f64> = (k..n)
-                    .take_while(|&j| rec.t[j] - rec.t[k] < MIN_FREE_AIR_S)
-                    .map(|j| rec.f[j][2])
-                    .collect();
-                if lifted.len() >= MIN_BAND_SAMPLES {
-                    let fresh = median(lifted);
-                    // A zero's drift, not a push.
-                    if (fresh - level).abs() < FREE_AIR_SPAN_N {
-                        level = fresh;
-                    }
-                }
             }
             i = end.max(last);
         }
         // Wait for the force to return to free air before the next approach.
-        while i < n && rec.f[i][2] - level > 0.5 * low {
+        while i < n && above(i) > 0.5 * low {
             i += 1;
         }
         free_from = i.min(n - 1);
@@ -666,6 +614,32 @@ mod tests {
                 a.z
             );
         }
+    }
+
+    #[test]
+    fn a_zero_drifting_down_across_a_long_tail_of_free_air_keeps_the_first_press() {
+        // Holdout-3 seed 24's first recording: 3 s of free air, a press held 12 s, 15 s
+        // of free air, the zero falling 0.45 N over the 30 s. The free air at the start
+        // sits 0.4 N above the tail's: still free air, and the press an approach.
+        let (k, dt, skin) = (800.0, 0.002, 0.9);
+        let mut rec = Recording::default();
+        for i in 0..15000 {
+            let t = i as f64 * dt;
+            let (z, vz) = match t {
+                t if t < 3.0 => (skin + 0.015, 0.0),
+                t if t < 4.0 => (skin + 0.015 - 0.02 * (t - 3.0), -0.02),
+                t if t < 14.0 => (skin - 0.005, 0.0),
+                t if t < 15.0 => (skin - 0.005 + 0.02 * (t - 14.0), 0.02),
+                _ => (skin + 0.015, 0.0),
+            };
+            rec.t.push(t);
+            rec.p.push([0.0, 0.0, z]);
+            rec.v.push([0.0, 0.0, vz]);
+            rec.f.push([0.0, 0.0, k * (skin - z).max(0.0) - 0.015 * t]);
+        }
+        let found = approaches(&rec);
+        assert_eq!(found.len(), 1, "{found:?}");
+        assert!((found[0].z - skin).abs() < 1e-4, "{found:?}");
     }
 
     #[test]
