@@ -299,6 +299,7 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
         },
         "unexplained_verdict": {
             "unexplained": o.verdict.unexplained,
+            "floor_n": o.verdict.floor_n,
             "ratio_to_noise": o.verdict.ratio_to_noise,
             "autocorrelation_50ms": o.verdict.autocorrelation_50ms,
             "thresholds": {"ratio": unexplained::RATIO, "autocorrelation": unexplained::AUTOCORRELATION, "ratio_alone": unexplained::SIZE_ALONE},
@@ -420,14 +421,15 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
     let _ = writeln!(s, "# Calibration report\n");
     let _ = writeln!(
         s,
-        "Dataset `{}`: {} recordings; {} to fit, {} to choose effects (validation), {} to judge (test, used for nothing else). Noise floor ≈ {:.3} N ({}).\n",
+        "Dataset `{}`: {} recordings; {} to fit, {} to choose effects (validation), {} to judge (test, used for nothing else). Noise floor ≈ {:.3} N ({}); with the probe motion's noise through the contact, {:.3} N on the held-out recordings (what the verdict holds the residual to).\n",
         o.dataset.dir.display(),
         o.series.len(),
         o.split.train.len(),
         o.split.validation.len(),
         o.split.test.len(),
         o.noise,
-        o.noise_source.as_str()
+        o.noise_source.as_str(),
+        o.verdict.floor_n
     );
     let untested = super::split::untested_protocols(&o.dataset, &o.split);
     if !untested.is_empty() {
@@ -440,7 +442,7 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
     if o.verdict.unexplained {
         let _ = writeln!(
             s,
-            "**Something the catalogue lacks remains.** After calibration the held-out residual is {:.1}× the noise floor and structured (autocorrelation {:.2} at 50 ms); see *Unexplained* below. The simulator is calibrated only as far as the catalogue reaches.\n",
+            "**Something the catalogue lacks remains.** After calibration the held-out residual is {:.1}× its floor and structured (autocorrelation {:.2} at 50 ms); see *Unexplained* below. The simulator is calibrated only as far as the catalogue reaches.\n",
             o.verdict.ratio_to_noise, o.verdict.autocorrelation_50ms
         );
     }
@@ -656,8 +658,9 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
     if o.verdict.unexplained {
         let _ = writeln!(
             s,
-            "The calibrated held-out residual is {:.1}× the noise floor and correlated {:.2} at 50 ms: not noise (more than {}× the floor, or more than {}× and correlated above {}). Where it lives:\n",
+            "The calibrated held-out residual is {:.1}× its floor ({:.3} N) and correlated {:.2} at 50 ms: not noise (more than {}× the floor, or more than {}× and correlated above {}). Where it lives:\n",
             o.verdict.ratio_to_noise,
+            o.verdict.floor_n,
             o.verdict.autocorrelation_50ms,
             unexplained::SIZE_ALONE,
             unexplained::RATIO,
@@ -682,8 +685,8 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
     } else {
         let _ = writeln!(
             s,
-            "Nothing: the held-out residual is {:.1}× the noise floor, autocorrelation {:.2} at 50 ms.",
-            o.verdict.ratio_to_noise, o.verdict.autocorrelation_50ms
+            "Nothing: the held-out residual is {:.1}× its floor ({:.3} N), autocorrelation {:.2} at 50 ms.",
+            o.verdict.ratio_to_noise, o.verdict.floor_n, o.verdict.autocorrelation_50ms
         );
     }
     let _ = writeln!(

@@ -16,6 +16,7 @@ use super::fit::Effort;
 use super::gain::{explained_share, relative_drop};
 use super::high_pass::high_pass;
 use super::model::{FitDiagnostics, Free, Geometry, apply_effects, fit_model, remove_effect};
+use super::noise;
 use super::on_trust::{self, Outcome, Trust};
 use super::replay::{self, Model, Setup, replay_all};
 use super::split::Split;
@@ -595,7 +596,17 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
         .collect();
     rejected.extend(failed);
     let heldout = split.heldout();
-    let verdict = unexplained::assess(&current, &heldout, noise, closest);
+    // The verdict's floor: the sensor's, and the motion's noise through the calibrated
+    // contact (see `noise::floor_with_inputs`).
+    let k_now = calibrated.stiffness * k_per_unit;
+    let floor = noise::floor_with_inputs(
+        heldout.iter().map(|&i| &current[i]),
+        noise,
+        noise::input_noise(series),
+        k_now,
+        k_now * calibrated.damping / calibrated.stiffness,
+    );
+    let verdict = unexplained::assess(&current, &heldout, floor, closest);
     let (calibrated_fz, calibrated_fxy) = current_predictions
         .into_iter()
         .map(|p| (p.fz, p.fxy))

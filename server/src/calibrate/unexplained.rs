@@ -51,7 +51,10 @@ pub struct Span {
 /// The verdict.
 #[derive(Debug, Clone, Serialize)]
 pub struct Verdict {
-    /// Calibrated held-out RMSE over the noise floor.
+    /// The floor the residual is held to \[N\]: the sensor's noise, and the probe
+    /// motion's through the contact (`noise::floor_with_inputs`).
+    pub floor_n: f64,
+    /// Calibrated held-out RMSE over that floor.
     pub ratio_to_noise: f64,
     /// Lag-1 autocorrelation of the held-out residual at 50 ms.
     pub autocorrelation_50ms: f64,
@@ -62,16 +65,17 @@ pub struct Verdict {
 }
 
 /// Judge the calibrated residual of the `heldout` series (their `residual` is the
-/// calibrated simulator's); `resembles` is the closest catalogue candidate.
+/// calibrated simulator's) against `floor` \[N\]; `resembles` is the closest catalogue
+/// candidate.
 pub fn assess(
     series: &[Series],
     heldout: &[usize],
-    noise: f64,
+    floor: f64,
     resembles: Option<&str>,
 ) -> Verdict {
     let held: Vec<Series> = heldout.iter().map(|&i| series[i].clone()).collect();
     let refs: Vec<&[f64]> = held.iter().map(|s| s.residual.as_slice()).collect();
-    let ratio_to_noise = rmse(&refs) / noise.max(1e-9);
+    let ratio_to_noise = rmse(&refs) / floor.max(1e-9);
     let thinned: Vec<Vec<f64>> = held
         .iter()
         .map(|s| {
@@ -97,6 +101,7 @@ pub fn assess(
         Vec::new()
     };
     Verdict {
+        floor_n: floor,
         ratio_to_noise,
         autocorrelation_50ms,
         unexplained,
