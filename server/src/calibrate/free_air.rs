@@ -10,12 +10,12 @@
 //! recordings' contact forces sat −0.3 to +0.6 N off.
 //!
 //! So free air is read as a curve: the recording cut into stretches of
-//! [`FREE_AIR_S`]; the stretches whose median force lies within [`FREE_AIR_SPAN_N`] of
+//! `FREE_AIR_S`; the stretches whose median force lies within `FREE_AIR_SPAN_N` of
 //! the lowest, once a trend in time is taken out (the probe only pushes, so contact
 //! reads higher); the level at a moment is the median of the free stretches within
-//! [`SMOOTH_S`] of the nearest one, interpolated between them and held beyond the
+//! `SMOOTH_S` of the nearest one, interpolated between them and held beyond the
 //! first and last. The trend is a Theil–Sen slope through free stretches at least
-//! [`TREND_GAP_S`] apart (none nearer: a short cluster's wander is not a drift).
+//! `TREND_GAP_S` apart (none nearer: a short cluster's wander is not a drift).
 
 use super::onset::median;
 use crate::recordings::Recording;
@@ -71,7 +71,7 @@ impl FreeAirLevel {
 }
 
 /// The free-air level of `rec`'s normal force, `None` without a stretch of
-/// [`MIN_SAMPLES`].
+/// `MIN_SAMPLES`.
 pub fn free_air_level(rec: &Recording) -> Option<FreeAirLevel> {
     // (middle time, median, samples) of each stretch.
     let mut stretches: Vec<(f64, f64, Vec<f64>)> = Vec::new();
@@ -126,7 +126,7 @@ pub fn free_air_level(rec: &Recording) -> Option<FreeAirLevel> {
     Some(FreeAirLevel { knots, spread })
 }
 
-/// The median slope over pairs of `points` at least [`TREND_GAP_S`] apart in time;
+/// The median slope over pairs of `points` at least `TREND_GAP_S` apart in time;
 /// 0 without such a pair.
 fn theil_sen(points: impl Iterator<Item = (f64, f64)>) -> f64 {
     let mut points: Vec<(f64, f64)> = points.collect();

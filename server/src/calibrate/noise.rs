@@ -9,7 +9,7 @@
 //! differences of the force thinned to ≤ 50 Hz, where a low-passed noise is close to
 //! white again.
 //!
-//! The stretches are whole hovers, up to [`STRETCH_S`]: a line through a short stretch
+//! The stretches are whole hovers, up to `STRETCH_S`: a line through a short stretch
 //! takes a coloured noise's slow part with it. Detrended over 0.5 s, holdout-3 seed 23's
 //! noise (σ 0.033 N, 69 % of its variance with a 0.36 s time constant) read 0.022 N;
 //! over 8 s, 0.031 N (seed 24, mostly white: 0.026 → 0.027 N against 0.028). Over a few
@@ -147,7 +147,7 @@ pub struct InputNoise {
 }
 
 /// The replayed height's and rate's noise, from the hovers in free air (stretches up to
-/// [`STRETCH_S`], each less its line); `None` under [`MIN_FREE_AIR_S`] of hover.
+/// `STRETCH_S`, each less its line); `None` under `MIN_FREE_AIR_S` of hover.
 pub fn input_noise(series: &[Series]) -> Option<InputNoise> {
     let (mut zz, mut vv, mut count, mut seconds) = (0.0, 0.0, 0usize, 0.0);
     for s in series {
