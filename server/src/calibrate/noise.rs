@@ -60,38 +60,41 @@ impl NoiseSource {
 
 /// Noise floor \[N\] and how it was measured.
 pub fn noise_floor(series: &[Series]) -> (f64, NoiseSource) {
-    let mut sum_squares = 0.0;
-    let mut count = 0usize;
-    let mut seconds = 0.0;
+    let (mut sum_squares, mut count, mut seconds) = (0.0, 0usize, 0.0);
     for s in series {
-        let stretch = ((STRETCH_S / s.dt).round() as usize).max(8);
-        let shortest = ((MIN_STRETCH_S / s.dt).round() as usize).max(4);
-        let mut run: Vec<usize> = Vec::new();
-        let mut flush = |run: &mut Vec<usize>| {
-            if run.len() >= shortest {
-                let (ss, n) = detrended_squares(&s.t, &s.measured, run);
-                sum_squares += ss;
-                count += n;
-                seconds += run.len() as f64 * s.dt;
-            }
-            run.clear();
-        };
-        for i in 0..s.len() {
-            if s.free_air[i] {
-                run.push(i);
-                if run.len() == stretch {
-                    flush(&mut run);
-                }
-            } else {
-                flush(&mut run);
-            }
+        for run in stretches(s, |i| s.free_air[i]) {
+            let (ss, n) = detrended_squares(&s.t, &s.measured, &run);
+            sum_squares += ss;
+            count += n;
+            seconds += run.len() as f64 * s.dt;
         }
-        flush(&mut run);
     }
     if seconds >= MIN_FREE_AIR_S && count > 0 {
         return ((sum_squares / count as f64).sqrt(), NoiseSource::FreeAir);
     }
     (second_differences(series), NoiseSource::SecondDifferences)
+}
+
+/// The runs of `s`'s samples where `keep` holds, cut at `STRETCH_S`; those shorter than
+/// `MIN_STRETCH_S` left out.
+fn stretches(s: &Series, keep: impl Fn(usize) -> bool) -> Vec<Vec<usize>> {
+    let longest = ((STRETCH_S / s.dt).round() as usize).max(8);
+    let shortest = ((MIN_STRETCH_S / s.dt).round() as usize).max(4);
+    let mut out = Vec::new();
+    let mut run: Vec<usize> = Vec::new();
+    for i in 0..=s.len() {
+        let kept = i < s.len() && keep(i);
+        if kept {
+            run.push(i);
+        }
+        if !kept || run.len() == longest {
+            if run.len() >= shortest {
+                out.push(std::mem::take(&mut run));
+            }
+            run.clear();
+        }
+    }
+    out
 }
 
 /// Sum of squares about a least-squares line through `y` over the samples `run`, and
@@ -151,31 +154,14 @@ pub struct InputNoise {
 pub fn input_noise(series: &[Series]) -> Option<InputNoise> {
     let (mut zz, mut vv, mut count, mut seconds) = (0.0, 0.0, 0usize, 0.0);
     for s in series {
-        let stretch = ((STRETCH_S / s.dt).round() as usize).max(8);
-        let shortest = ((MIN_STRETCH_S / s.dt).round() as usize).max(4);
-        let mut run: Vec<usize> = Vec::new();
-        let mut flush = |run: &mut Vec<usize>| {
-            if run.len() >= shortest {
-                let (z, n) = detrended_squares(&s.t, &s.depth, run);
-                let (v, _) = detrended_squares(&s.t, &s.vz, run);
-                zz += z;
-                vv += v;
-                count += n;
-                seconds += run.len() as f64 * s.dt;
-            }
-            run.clear();
-        };
-        for i in 0..s.len() {
-            if s.free_air[i] && s.vz_held[i].abs() < HOVER_SPEED {
-                run.push(i);
-                if run.len() == stretch {
-                    flush(&mut run);
-                }
-            } else {
-                flush(&mut run);
-            }
+        for run in stretches(s, |i| s.free_air[i] && s.vz_held[i].abs() < HOVER_SPEED) {
+            let (z, n) = detrended_squares(&s.t, &s.depth, &run);
+            let (v, _) = detrended_squares(&s.t, &s.vz, &run);
+            zz += z;
+            vv += v;
+            count += n;
+            seconds += run.len() as f64 * s.dt;
         }
-        flush(&mut run);
     }
     (seconds >= MIN_FREE_AIR_S && count > 0).then(|| InputNoise {
         position_m: (zz / count as f64).sqrt(),
