@@ -17,7 +17,6 @@
 //! first and last. The trend is a Theil–Sen slope through free stretches at least
 //! `TREND_GAP_S` apart (none nearer: a short cluster's wander is not a drift).
 
-use super::onset::median;
 use crate::recordings::Recording;
 
 /// The stretch length \[s\]: a 0.3-s median sees through the fast noise and is short
@@ -124,6 +123,12 @@ pub fn free_air_level(rec: &Recording) -> Option<FreeAirLevel> {
             .collect(),
     ) / 0.6745;
     Some(FreeAirLevel { knots, spread })
+}
+
+/// The middle of `v` (the upper one of an even count).
+pub(crate) fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
 }
 
 /// The median slope over pairs of `points` at least `TREND_GAP_S` apart in time;

@@ -25,7 +25,7 @@
 //! the phase (the median over approaches helps); a recording that starts in contact has
 //! no onset (its surface is fitted instead).
 
-use super::free_air::free_air_level;
+use super::free_air::{free_air_level, median};
 use crate::recordings::Recording;
 
 /// The onset band above the free-air level \[N\]: its lower edge is at least this, or
@@ -337,11 +337,6 @@ fn slope(rec: &Recording, samples: &[usize]) -> Option<f64> {
         szf / szz
     };
     (b < 0.0).then_some(b)
-}
-
-pub(crate) fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 #[cfg(test)]

@@ -11,8 +11,9 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::free_air::median;
 use super::geometry::{self, PathSurface, SiteSurface};
-use super::onset::{Approach, median};
+use super::onset::Approach;
 use super::session::{SessionClock, settled_share};
 use crate::recordings::Recording;
 use crate::sim::ft_sensor::{low_pass_sampled, pole_hz};
