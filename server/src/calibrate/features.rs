@@ -235,12 +235,19 @@ impl Series {
     }
 }
 
-/// Root mean square of residuals over several series.
-pub fn rmse(residuals: &[&[f64]]) -> f64 {
-    let (sum, count) = residuals.iter().fold((0.0, 0usize), |(s, c), r| {
-        (s + r.iter().map(|v| v * v).sum::<f64>(), c + r.len())
+/// Root mean square of residuals over several series, each given with its sample
+/// interval \[s\]: every second weighs the same, whatever a recording's rate. Pooled by
+/// sample, a 2000 Hz slide outweighed a 100 Hz chirp of half its length 36 to 1, and
+/// the chirp that showed holdout-3 seed 25's sensor filter did not count in its
+/// validation (−2.4 % there against −87 % in training).
+pub fn rmse(residuals: &[(&[f64], f64)]) -> f64 {
+    let (sum, time) = residuals.iter().fold((0.0, 0.0), |(s, t), (r, dt)| {
+        (
+            s + dt * r.iter().map(|v| v * v).sum::<f64>(),
+            t + dt * r.len() as f64,
+        )
     });
-    (sum / count.max(1) as f64).sqrt()
+    if time > 0.0 { (sum / time).sqrt() } else { 0.0 }
 }
 
 #[cfg(test)]

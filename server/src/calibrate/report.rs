@@ -47,7 +47,11 @@ fn rmse_of(outcome: &Outcome, indices: &[usize], calibrated: bool) -> f64 {
             }
         })
         .collect();
-    let refs: Vec<&[f64]> = rs.iter().map(|r| r.as_slice()).collect();
+    let refs: Vec<(&[f64], f64)> = rs
+        .iter()
+        .zip(indices)
+        .map(|(r, &i)| (r.as_slice(), outcome.series[i].dt))
+        .collect();
     rmse(&refs)
 }
 
@@ -69,7 +73,11 @@ fn sideways_rmse_of(outcome: &Outcome, indices: &[usize], calibrated: bool) -> f
                 .collect()
         })
         .collect();
-    let refs: Vec<&[f64]> = rs.iter().map(|r| r.as_slice()).collect();
+    let refs: Vec<(&[f64], f64)> = rs
+        .iter()
+        .zip(indices)
+        .map(|(r, &i)| (r.as_slice(), outcome.series[i].dt))
+        .collect();
     rmse(&refs)
 }
 

@@ -1033,19 +1033,20 @@ fn select_effects(
         } else {
             1
         };
-        let rs: Vec<Vec<f64>> = residual
+        let rs: Vec<(Vec<f64>, f64)> = residual
             .iter()
             .enumerate()
             .filter(|(k, _)| mask[*k])
             .map(|(k, r)| {
                 let r: Vec<f64> = r.iter().zip(&pred[k]).map(|(r, q)| r - q).collect();
-                match weighing {
+                let r = match weighing {
                     Some(w) => w.view(k, r, per_sample),
                     None => r,
-                }
+                };
+                (r, series[k].dt)
             })
             .collect();
-        let refs: Vec<&[f64]> = rs.iter().map(|r| r.as_slice()).collect();
+        let refs: Vec<(&[f64], f64)> = rs.iter().map(|(r, dt)| (r.as_slice(), *dt)).collect();
         rmse(&refs)
     };
     let normal_null = effects::readjusted(series, train, base);
@@ -1310,7 +1311,7 @@ fn rmse_against(
     channel: effects::Channel,
     weighing: Option<&Weighing>,
 ) -> f64 {
-    let rs: Vec<Vec<f64>> = indices
+    let rs: Vec<(Vec<f64>, f64)> = indices
         .iter()
         .map(|&i| {
             let rec = &dataset.recordings[i];
@@ -1328,13 +1329,14 @@ fn rmse_against(
                     2,
                 ),
             };
-            match weighing {
+            let r = match weighing {
                 Some(w) => w.view(i, r, per_sample),
                 None => r,
-            }
+            };
+            (r, 1.0 / rec.rate_hz())
         })
         .collect();
-    let refs: Vec<&[f64]> = rs.iter().map(|r| r.as_slice()).collect();
+    let refs: Vec<(&[f64], f64)> = rs.iter().map(|(r, dt)| (r.as_slice(), *dt)).collect();
     rmse(&refs)
 }
 

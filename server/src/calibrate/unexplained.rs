@@ -74,7 +74,7 @@ pub fn assess(
     resembles: Option<&str>,
 ) -> Verdict {
     let held: Vec<Series> = heldout.iter().map(|&i| series[i].clone()).collect();
-    let refs: Vec<&[f64]> = held.iter().map(|s| s.residual.as_slice()).collect();
+    let refs: Vec<(&[f64], f64)> = held.iter().map(|s| (s.residual.as_slice(), s.dt)).collect();
     let ratio_to_noise = rmse(&refs) / floor.max(1e-9);
     let thinned: Vec<Vec<f64>> = held
         .iter()
