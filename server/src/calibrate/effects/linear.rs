@@ -138,6 +138,17 @@ fn level_column(s: &Series, base: Base) -> Vec<f64> {
 /// Whether signatures readjust each recording's level (see [`level_column`]).
 const RECORDING_LEVELS: bool = false;
 
+/// Each training series' row weight (`√dt`: every second of a recording weighs the same
+/// in the sum of squares, whatever its rate, as in `features::rmse`); `None` for the
+/// others.
+fn rows(series: &[Series], train: &[bool]) -> Vec<Option<f64>> {
+    series
+        .iter()
+        .zip(train)
+        .map(|(s, &t)| t.then(|| s.dt.sqrt()))
+        .collect()
+}
+
 /// One linear solve.
 struct Solved {
     /// Training SSE.
@@ -159,7 +170,7 @@ fn solve_seen(
     damping: Option<(usize, f64)>,
 ) -> Solved {
     let Some(hz) = base.fit_above_hz else {
-        return solve((targets, cols), cols, level, train, damping);
+        return solve((targets, cols), cols, level, &rows(series, train), damping);
     };
     let seen = |s: &Series, x: &[f64]| high_pass(x, s.dt, hz);
     let fit_targets: Vec<Vec<f64>> = series
@@ -172,7 +183,13 @@ fn solve_seen(
         .zip(cols)
         .map(|(s, c)| c.iter().map(|x| seen(s, x)).collect())
         .collect();
-    solve((&fit_targets, &fit_cols), cols, level, train, damping)
+    solve(
+        (&fit_targets, &fit_cols),
+        cols,
+        level,
+        &rows(series, train),
+        damping,
+    )
 }
 
 /// [`solve`] for [`Base::fit_free_air`]: the first `own` columns (the signature's) on
@@ -208,7 +225,7 @@ fn solve_free_air(
         (&air_targets, &air_cols),
         &air_cols,
         &air_level,
-        train,
+        &rows(series, train),
         None,
     );
     let rest_targets: Vec<Vec<f64>> = targets
@@ -226,7 +243,7 @@ fn solve_free_air(
         (&rest_targets, &rest_cols),
         &rest_cols,
         level,
-        train,
+        &rows(series, train),
         damping,
     );
     let predicted = rest
@@ -259,28 +276,31 @@ fn solve(
     (targets, fit_cols): (&[Vec<f64>], &[Vec<Vec<f64>>]),
     cols: &[Vec<Vec<f64>>],
     level: &[Vec<f64>],
-    train: &[bool],
+    weights: &[Option<f64>],
     damping: Option<(usize, f64)>,
 ) -> Solved {
     let p = cols.first().map_or(0, |c| c.len());
-    let trained: Vec<usize> = (0..targets.len()).filter(|&k| train[k]).collect();
+    let trained: Vec<usize> = (0..targets.len())
+        .filter(|&k| weights[k].is_some())
+        .collect();
     // Without recording levels (see `RECORDING_LEVELS`) no level columns are built.
     let levelled: &[usize] = if RECORDING_LEVELS { &trained } else { &[] };
     let rows: usize = trained.iter().map(|&k| targets[k].len()).sum();
     let mut stacked = vec![Vec::with_capacity(rows); p + levelled.len()];
     let mut y = Vec::with_capacity(rows);
     for (position, &k) in trained.iter().enumerate() {
+        let w = weights[k].unwrap_or(0.0);
         for (j, c) in fit_cols[k].iter().enumerate() {
-            stacked[j].extend_from_slice(c);
+            stacked[j].extend(c.iter().map(|v| w * v));
         }
         for (j, column) in stacked[p..].iter_mut().enumerate() {
             if j == position {
-                column.extend_from_slice(&level[k]);
+                column.extend(level[k].iter().map(|v| w * v));
             } else {
                 column.extend(std::iter::repeat_n(0.0, targets[k].len()));
             }
         }
-        y.extend_from_slice(&targets[k]);
+        y.extend(targets[k].iter().map(|v| w * v));
     }
     let all_rows = vec![true; y.len()];
     let mut beta = least_squares(&stacked, &y, &all_rows);
