@@ -56,7 +56,7 @@ pub struct Share {
     pub label: String,
     /// Share of the residual energy.
     pub share: f64,
-    /// Share of the samples.
+    /// Share of the time (of the samples, each weighing its recording's interval).
     pub samples: f64,
     /// RMS residual within \[N\].
     pub rms_n: f64,
@@ -79,27 +79,34 @@ pub struct Mismatch {
     pub by_frequency: Vec<Share>,
 }
 
-fn shares(labels: &[(String, f64)]) -> Vec<Share> {
-    let total: f64 = labels.iter().map(|(_, e)| e).sum::<f64>().max(1e-300);
-    let count = labels.len().max(1) as f64;
-    let mut groups: Vec<(String, f64, usize)> = Vec::new();
-    for (label, e) in labels {
+/// Shares by label of `(label, squared residual, sample interval)` per sample: energy
+/// and time are both weighed by the interval, so every second counts the same whatever
+/// a recording's rate (as in `features::rmse`).
+fn shares(labels: &[(String, f64, f64)]) -> Vec<Share> {
+    let total: f64 = labels
+        .iter()
+        .map(|(_, e, dt)| e * dt)
+        .sum::<f64>()
+        .max(1e-300);
+    let time = labels.iter().map(|(_, _, dt)| dt).sum::<f64>().max(1e-300);
+    let mut groups: Vec<(String, f64, f64)> = Vec::new();
+    for (label, e, dt) in labels {
         match groups.iter_mut().find(|(l, _, _)| l == label) {
             Some(g) => {
-                g.1 += e;
-                g.2 += 1;
+                g.1 += e * dt;
+                g.2 += dt;
             }
-            None => groups.push((label.clone(), *e, 1)),
+            None => groups.push((label.clone(), e * dt, *dt)),
         }
     }
     groups.sort_by(|a, b| b.1.total_cmp(&a.1));
     groups
         .into_iter()
-        .map(|(label, e, n)| Share {
+        .map(|(label, e, t)| Share {
             label,
             share: e / total,
-            samples: n as f64 / count,
-            rms_n: (e / n as f64).sqrt(),
+            samples: t / time,
+            rms_n: (e / t.max(1e-300)).sqrt(),
         })
         .collect()
 }
@@ -108,8 +115,7 @@ fn shares(labels: &[(String, f64)]) -> Vec<Share> {
 pub fn locate(series: &[Series]) -> Mismatch {
     let total: f64 = series
         .iter()
-        .flat_map(|s| s.residual.iter())
-        .map(|r| r * r)
+        .map(|s| s.dt * s.residual.iter().map(|r| r * r).sum::<f64>())
         .sum::<f64>()
         .max(1e-300);
     let mut per_sample_phase = Vec::new();
@@ -120,8 +126,8 @@ pub fn locate(series: &[Series]) -> Mismatch {
     for s in series {
         for i in 0..s.len() {
             let e = s.residual[i] * s.residual[i];
-            per_sample_phase.push((phase(s, i).to_owned(), e));
-            per_recording.push((s.file.clone(), e));
+            per_sample_phase.push((phase(s, i).to_owned(), e, s.dt));
+            per_recording.push((s.file.clone(), e, s.dt));
             let d = s.depth[i] * 1000.0;
             let depth = if !s.contact[i] {
                 "not touching"
@@ -134,7 +140,7 @@ pub fn locate(series: &[Series]) -> Mismatch {
             } else {
                 "> 15 mm"
             };
-            per_depth.push((depth.to_owned(), e));
+            per_depth.push((depth.to_owned(), e, s.dt));
             let v = s.vz[i].abs().max(s.lateral_speed[i]) * 1000.0;
             let velocity = if v < 1.0 {
                 "< 1 mm/s"
@@ -145,7 +151,7 @@ pub fn locate(series: &[Series]) -> Mismatch {
             } else {
                 "> 15 mm/s"
             };
-            per_velocity.push((velocity.to_owned(), e));
+            per_velocity.push((velocity.to_owned(), e, s.dt));
         }
         // 2 s windows.
         let window = (2.0 / s.dt).round().max(1.0) as usize;
@@ -171,7 +177,7 @@ pub fn locate(series: &[Series]) -> Mismatch {
                 t_start: s.t[start],
                 t_end: s.t[end - 1],
                 phase: dominant.to_owned(),
-                share: e / total,
+                share: e * s.dt / total,
                 rms_n: rms,
                 description: format!(
                     "{dominant} at {}: residual RMS {rms:.2} N, mean {mean:+.2} N",
@@ -216,7 +222,8 @@ fn frequency_shares(series: &[Series]) -> Vec<Share> {
             .collect();
         let fine: f64 = s.residual.iter().map(|r| r * r).sum();
         let coarse: f64 = down.iter().map(|r| r * r).sum::<f64>() * factor as f64;
-        energy[4] += (fine - coarse).max(0.0);
+        // Energies weigh each sample by its interval (seconds count, not samples).
+        energy[4] += (fine - coarse).max(0.0) * s.dt;
         let n = down.len();
         let dt = s.dt * factor as f64;
         for k in 0..=n / 2 {
@@ -233,7 +240,7 @@ fn frequency_shares(series: &[Series]) -> Vec<Share> {
             } else {
                 2.0
             };
-            let e = mirrored * (re * re + im * im) / n as f64 * factor as f64;
+            let e = mirrored * (re * re + im * im) / n as f64 * factor as f64 * s.dt;
             let band = bands
                 .iter()
                 .position(|&(_, lo, hi)| f >= lo && f < hi)
