@@ -129,10 +129,7 @@ pub fn fit(setup: &Setup, dataset: &Dataset, split: &Split) -> Baseline {
         &[],
         global,
         // Only a start for the per-site stage.
-        Effort {
-            iterations: GLOBAL_ITERATIONS,
-            intervals: false,
-        },
+        Effort::iterations(GLOBAL_ITERATIONS, false),
     );
     let (model, diagnostics) = fit_model(
         setup,
@@ -141,10 +138,7 @@ pub fn fit(setup: &Setup, dataset: &Dataset, split: &Split) -> Baseline {
         model,
         &[],
         Free::PER_SITE,
-        Effort {
-            iterations: SITE_ITERATIONS,
-            intervals: true,
-        },
+        Effort::iterations(SITE_ITERATIONS, true),
     );
     let (model, surface_from_heldout) = surface_elsewhere(setup, dataset, split, model);
     Baseline {
@@ -196,10 +190,7 @@ pub fn surface_elsewhere(
         &[],
         geometry_only,
         // Nuisances: their intervals are not reported.
-        Effort {
-            iterations: SITE_ITERATIONS,
-            intervals: false,
-        },
+        Effort::iterations(SITE_ITERATIONS, false),
     );
     let mut sites: Vec<String> = model
         .surface

@@ -79,17 +79,35 @@ pub struct Effort {
     /// Whether the result needs intervals, hence a finite-difference Jacobian at the
     /// final point: a fit whose point only starts another skips its replays.
     pub intervals: bool,
+    /// Relative cost change at which it has converged (see [`TOLERANCE`]).
+    pub tolerance: f64,
+    /// Share of the cost a step must promise to be replayed (see
+    /// [`PREDICTED_TOLERANCE`]).
+    pub promised: f64,
+}
+
+impl Effort {
+    /// At most `iterations` LM steps to the default tolerances.
+    pub const fn iterations(iterations: usize, intervals: bool) -> Self {
+        Self {
+            iterations,
+            intervals,
+            tolerance: TOLERANCE,
+            promised: PREDICTED_TOLERANCE,
+        }
+    }
 }
 
 /// Residual blocks: `f(x, blocks)` returns the residuals of the listed blocks, in order.
 /// Called from several threads at once (Jacobian columns are evaluated in parallel).
 pub type BlockResiduals<'a> = dyn Fn(&[f64], &[usize]) -> Vec<Vec<f64>> + Sync + 'a;
 
-/// Relative cost change below which the fit has converged.
-const TOLERANCE: f64 = 1e-5;
+/// Relative cost change below which a fit has converged (an [`Effort`]'s `tolerance`).
+pub const TOLERANCE: f64 = 1e-5;
 /// A trial step whose linearised cost reduction is below this share of the cost is not
-/// replayed: the fit is as good as this damping lets the linear model make it.
-const PREDICTED_TOLERANCE: f64 = 1e-4;
+/// replayed: the fit is as good as this damping lets the linear model make it (an
+/// [`Effort`]'s `promised`).
+pub const PREDICTED_TOLERANCE: f64 = 1e-4;
 /// Damping at the first start and its smallest value. The columns are scaled to unit
 /// norm, so `λ` compares with the squared singular values of a matrix whose largest is
 /// at most the parameter count: below 10⁻⁹ the step is Gauss–Newton's.
@@ -159,7 +177,7 @@ pub fn levenberg_marquardt_blocks(
             clamp(&mut candidate);
             let delta = DVector::from_iterator(n, candidate.iter().zip(&x).map(|(c, x)| c - x));
             let predicted = cost - (&rv + &jac * &delta).norm_squared();
-            if predicted <= PREDICTED_TOLERANCE * cost {
+            if predicted <= effort.promised * cost {
                 // Not even the linear model gains anything worth a replay at this damping.
                 if tracing::enabled!(tracing::Level::TRACE) {
                     let r_norm = rv.norm().max(1e-300);
@@ -206,7 +224,7 @@ pub fn levenberg_marquardt_blocks(
                     (lambda * (1.0 / 3.0_f64).max(1.0 - (2.0 * rho - 1.0).powi(3))).max(LAMBDA_MIN);
                 nu = 2.0;
                 improved = true;
-                if relative < TOLERANCE {
+                if relative < effort.tolerance {
                     convergence = Convergence::Converged;
                 }
                 break;
@@ -259,7 +277,7 @@ pub fn levenberg_marquardt_blocks(
             let rv = DVector::from_iterator(m, r.iter().flatten().copied());
             let promised = bounded_step(&jac, &rv, lambda, &x, bounds)
                 .map_or(0.0, |step| cost - (&rv + &jac * &step).norm_squared());
-            if promised <= PREDICTED_TOLERANCE * cost {
+            if promised <= effort.promised * cost {
                 break;
             }
             convergence = Convergence::IterationLimit;
@@ -300,10 +318,7 @@ pub fn levenberg_marquardt(
     max_iterations: usize,
 ) -> FitResult {
     let blocks = |x: &[f64], _: &[usize]| vec![residuals(x)];
-    let effort = Effort {
-        iterations: max_iterations,
-        intervals: true,
-    };
+    let effort = Effort::iterations(max_iterations, true);
     levenberg_marquardt_blocks(&blocks, 1, &[], x0, bounds, effort)
 }
 
@@ -781,10 +796,7 @@ mod tests {
             &touches,
             &[0.0; 4],
             &[b; 4],
-            Effort {
-                iterations: 20,
-                intervals: true,
-            },
+            Effort::iterations(20, true),
         );
         let truth = [2.0, 0.3, -0.2, 0.7];
         for (j, t) in truth.iter().enumerate() {

@@ -126,9 +126,17 @@ fn calibrated_params(
 }
 
 fn report_context<'a>(o: &Outcome, site_stiffness: &'a [(String, f64)]) -> ReportContext<'a> {
+    let centre = o.setup.center_xy;
     ReportContext {
         site_stiffness,
         session_span_s: o.setup.session.length(),
+        training_xy: o
+            .split
+            .train
+            .iter()
+            .map(|&i| [o.series[i].xy[0] - centre[0], o.series[i].xy[1] - centre[1]])
+            .collect(),
+        half_size: [o.setup.torso.size[0] / 2.0, o.setup.torso.size[1] / 2.0],
     }
 }
 
@@ -607,11 +615,24 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
         }
         let _ = writeln!(s, "\nFinal fit {}.", o.calibrated_fit.convergence.as_str());
     }
-    for e in
-        o.calibrated_fit.estimates.iter().filter(|e| {
-            e.at_bound && !e.name.starts_with("surface.") && !e.name.starts_with("path.")
+    // A parameter the recordings cannot determine sits where a tie rule put it, maybe
+    // at a bound, not because they ask for more (its effect's sentence says so).
+    let undetermined: Vec<String> = o
+        .accepted
+        .iter()
+        .filter_map(|a| effects::named(a.name))
+        .flat_map(|e| {
+            e.undetermined(&o.calibrated, &report_context(o, site_stiffness))
+                .into_iter()
+                .map(move |key| format!("{}.{key}", e.name()))
         })
-    {
+        .collect();
+    for e in o.calibrated_fit.estimates.iter().filter(|e| {
+        e.at_bound
+            && !e.name.starts_with("surface.")
+            && !e.name.starts_with("path.")
+            && !undetermined.contains(&e.name)
+    }) {
         let _ = writeln!(
             s,
             "- warning: {} stopped at the bound of its range ({:.4}): the recordings ask for more than the model allows, so the value is a limit, not an estimate. The physics may have another form than the catalogue's (docs/calibration.md, \"What the tool cannot tell apart\").",

@@ -40,6 +40,31 @@ pub const INDISTINGUISHABLE: f64 = 0.85;
 /// LM iterations of the refit after each accepted effect (at most: a converged fit
 /// stops; 5 left a sensor delay's refit short of its optimum, losing to a filter).
 const EFFECT_ITERATIONS: usize = 10;
+/// The refit after each accepted effect. It stops at a step gaining under 10⁻³ of the
+/// cost (0.05 % of an RMSE: a twentieth of the smallest slack a decision uses,
+/// `WHOLE_SLACK`, and below the report's precision), where the default 10⁻⁵ spent 55 of
+/// a 9-parameter refit's 68 s (holdout-3 seed 26, delay + friction; 2-core EPYC) on steps
+/// that together gained 0.3 % of the cost, crawling along a delay–damping valley.
+const EFFECT_REFIT: Effort = Effort {
+    iterations: EFFECT_ITERATIONS,
+    intervals: true,
+    tolerance: 1e-3,
+    promised: 1e-3,
+};
+/// A backward step's first, short refit without the effect (its first LM steps take
+/// nearly all the gain a refit makes): where the effect still halves the validation
+/// RMSE against it (see `PRUNE_CLEAR`), it is kept without the full refit, which could
+/// only lower the RMSE without it a little more. Anything closer gets the full refit.
+const PRUNE_GLANCE: Effort = Effort {
+    iterations: 3,
+    intervals: false,
+    ..EFFECT_REFIT
+};
+/// The relative validation drop an effect must make against [`PRUNE_GLANCE`]'s refit
+/// without it to be kept on that alone: 50 %, ten times the first round's bar
+/// (`FIRST_GAIN`). Set in session 41 on holdout-3 seed 26's delay + friction, where the
+/// backward step's full refit (55 s, 40 evaluations) found 90 %.
+const PRUNE_CLEAR: f64 = 0.5;
 /// How much worse over all samples a signature weighed in a band may leave the whole
 /// (relative RMSE): its part above the band leaks below it through the high-pass's
 /// edges, so "no worse" is a change within this, not a strict sign. Set after seeing
@@ -235,8 +260,8 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                         split,
                         start.clone(),
                         (fitted, &reread, free),
-                        k_per_unit,
-                        in_free_air,
+                        (k_per_unit, in_free_air),
+                        EFFECT_REFIT,
                     )
                 };
                 // `held`: the refit kept the parameters other than the candidate's and
@@ -694,15 +719,35 @@ fn prune(context: &Context<'_>, state: &mut Calibrated) -> Vec<decision::Rejecte
             .map(|a| a.name)
             .filter(|n| *n != name)
             .collect();
-        let (model, diagnostics, predictions) = refit_in_simulator(
-            setup,
-            dataset,
-            split,
-            model,
-            (&names, &names, Free::PER_SITE),
-            k_per_unit,
-            in_free_air,
-        );
+        let refit = |model: Model, effort: Effort| {
+            refit_in_simulator(
+                setup,
+                dataset,
+                split,
+                model,
+                (&names, &names, Free::PER_SITE),
+                (k_per_unit, in_free_air),
+                effort,
+            )
+        };
+        let channel = entry.channel();
+        let error = |p: &[replay::Prediction], w: Option<&Weighing>| {
+            rmse_against(dataset, &split.validation, p, channel, w)
+        };
+        let glance = refit(model, PRUNE_GLANCE);
+        let clear = relative_drop(error(&glance.2, None), error(&state.predictions, None));
+        let (model, diagnostics, predictions) = if clear >= PRUNE_CLEAR {
+            tracing::debug!(
+                "backward step: without {name}, a {}-iteration refit leaves the validation {:.1} % higher: kept without the full refit",
+                PRUNE_GLANCE.iterations,
+                100.0 * clear
+            );
+            j += 1;
+            continue;
+        } else {
+            // Continued from where the short refit got.
+            refit(glance.0, EFFECT_REFIT)
+        };
         let without = series_of(dataset, setup, &predictions);
         let judging = Judging {
             train,
@@ -710,10 +755,6 @@ fn prune(context: &Context<'_>, state: &mut Calibrated) -> Vec<decision::Rejecte
             breathing_modelled: model.breathing.is_some(),
         };
         let region = judging.weighing(&without, entry.judged_in());
-        let channel = entry.channel();
-        let error = |p: &[replay::Prediction], w: Option<&Weighing>| {
-            rmse_against(dataset, &split.validation, p, channel, w)
-        };
         let (before, after) = (error(&predictions, None), error(&state.predictions, None));
         let (gate_before, gate_after) = match &region {
             Some(w) => (
@@ -785,13 +826,9 @@ fn refit_in_simulator(
     split: &Split,
     model: Model,
     (names, reread, free): (&[&str], &[&str], Free),
-    k_per_unit: f64,
-    in_free_air: bool,
+    (k_per_unit, in_free_air): (f64, bool),
+    effort: Effort,
 ) -> (Model, FitDiagnostics, Vec<replay::Prediction>) {
-    let effort = Effort {
-        iterations: EFFECT_ITERATIONS,
-        intervals: true,
-    };
     let read_in_free_air = |name: &&str| {
         effects::named(name).is_some_and(|e| e.judged_in() == effects::Region::FreeAir)
     };
@@ -922,8 +959,8 @@ fn try_richer(
         split,
         model,
         (&names, &reread, Free::PER_SITE),
-        k_per_unit,
-        in_free_air,
+        (k_per_unit, in_free_air),
+        EFFECT_REFIT,
     );
     let channel = entry.channel();
     let train_before = rmse_against(dataset, &split.train, &trial.predictions, channel, None);

@@ -119,6 +119,12 @@ pub struct ReportContext<'a> {
     pub site_stiffness: &'a [(String, f64)],
     /// The session's span on its common clock \[s\] (first sample to last).
     pub session_span_s: f64,
+    /// Where each training recording touched, from the torso's centre \[m\] (mean
+    /// contact position), and the torso top's half size: what a law that varies over
+    /// the top was fitted over.
+    pub training_xy: Vec<[f64; 2]>,
+    /// Half the torso top's size \[m\].
+    pub half_size: [f64; 2],
 }
 
 /// One catalogue effect.
@@ -213,6 +219,13 @@ pub trait Effect: Sync {
 
     /// One sentence: what was found and what the simulator gained.
     fn sentence(&self, model: &Model, context: &ReportContext<'_>) -> String;
+
+    /// Keys of its parameters the recordings cannot determine: the report does not
+    /// warn that such a parameter stopped at a bound (a tie rule put it there) and the
+    /// sentence says what is known instead.
+    fn undetermined(&self, _model: &Model, _context: &ReportContext<'_>) -> Vec<&'static str> {
+        Vec::new()
+    }
 }
 
 pub use super::features::Channel;
