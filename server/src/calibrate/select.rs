@@ -158,6 +158,11 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
     .is_some();
     // A near miss held on trust, with the state to return to if nothing joins it.
     let mut trust = Trust::<Snapshot>::default();
+    // Trials against the simulator as it stands: a round run again after a failed
+    // trial (without the failed effect) would refit the same contender from the same
+    // state to the same result (holdout-3 seed 27, breathing + filter: a delay's trial,
+    // 75 s, twice). Cleared whenever the state changes.
+    let mut tried: Vec<Trial> = Vec::new();
     for _attempt in 0..6 {
         let k_now = calibrated.stiffness * k_per_unit;
         let mut skip = failures.skipped().to_vec();
@@ -234,6 +239,15 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
         let trials: Vec<Trial> = contenders
             .iter()
             .map(|effect| {
+                if let Some(known) = tried.iter().find(|t| t.effect.name == effect.name) {
+                    tracing::debug!(
+                        "{} modelled in the simulator already, from this state: validation {:.4} → {:.4} N",
+                        effect.name,
+                        known.before,
+                        known.after
+                    );
+                    return known.clone();
+                }
                 let entry = effects::named(effect.name).expect("selected from the catalogue");
                 let mut model = calibrated.clone();
                 apply_effects(&mut model, std::slice::from_ref(*effect), setup);
@@ -397,6 +411,11 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                 }
             })
             .collect();
+        for trial in &trials {
+            if tried.iter().all(|t| t.effect.name != trial.effect.name) {
+                tried.push(trial.clone());
+            }
+        }
         let mut trials = trials;
         trials.sort_by(|a, b| b.gain().total_cmp(&a.gain()));
         let mut trial = trials.swap_remove(0);
@@ -508,6 +527,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                 k_per_unit,
             );
             failures.named(trial.effect.name);
+            tried.clear();
             calibrated = trial.model;
             calibrated_fit = if trial.held {
                 trial.diagnostics.with_held(&calibrated_fit)
@@ -1008,6 +1028,7 @@ struct Round {
 }
 
 /// An effect modelled in the simulator and refitted, with its validation figures.
+#[derive(Clone)]
 struct Trial {
     effect: decision::Accepted,
     /// The effects the refit moved.
