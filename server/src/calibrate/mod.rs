@@ -38,6 +38,7 @@ pub mod replay;
 pub mod report;
 pub mod select;
 pub mod session;
+pub mod simpler;
 pub mod split;
 pub mod synth;
 pub mod thesis_method;

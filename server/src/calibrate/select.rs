@@ -21,7 +21,7 @@ use super::on_trust::{self, Outcome, Trust};
 use super::replay::{self, Model, Setup, replay_all};
 use super::split::Split;
 use super::weighing::{self, Judging, Weighing};
-use super::{baseline, decision, series_of, unexplained};
+use super::{baseline, decision, series_of, simpler, unexplained};
 
 /// Validation RMSE reduction the first accepted effect needs (relative).
 pub const FIRST_GAIN: f64 = 0.05;
@@ -621,12 +621,17 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
     };
     rejected.extend(prune(&context, &mut state));
     let Calibrated {
-        model: calibrated,
-        fit: calibrated_fit,
-        series: current,
-        predictions: current_predictions,
-        accepted,
+        model: mut calibrated,
+        fit: mut calibrated_fit,
+        series: mut current,
+        predictions: mut current_predictions,
+        mut accepted,
     } = state;
+    if simpler::name_the_simpler(&mut calibrated, &mut calibrated_fit, &mut accepted) {
+        let all: Vec<usize> = (0..n).collect();
+        current_predictions = replay_all(setup, &calibrated, &dataset.recordings, &all);
+        current = series_of(dataset, setup, &current_predictions);
+    }
     let closest = rejected
         .iter()
         .filter_map(|r| r.explained.map(|e| (r.name, e)))
@@ -758,9 +763,9 @@ fn prune(context: &Context<'_>, state: &mut Calibrated) -> Vec<decision::Rejecte
         let clear = relative_drop(error(&glance.2, None), error(&state.predictions, None));
         let (model, diagnostics, predictions) = if clear >= PRUNE_CLEAR {
             tracing::debug!(
-                "backward step: without {name}, a {}-iteration refit leaves the validation {:.1} % higher: kept without the full refit",
-                PRUNE_GLANCE.iterations,
-                100.0 * clear
+                "backward step: with {name} the validation RMSE is {:.1} % lower than after a {}-iteration refit without it: kept without the full refit",
+                100.0 * clear,
+                PRUNE_GLANCE.iterations
             );
             j += 1;
             continue;

@@ -140,6 +140,19 @@ impl Effect for BiasDrift {
         }
     }
 
+    /// The drift (`total_n`, none at 0), where it does not settle: a settling drift's
+    /// shape is a second part.
+    fn extra_part(&self, model: &Model) -> Option<(&'static str, f64, Model)> {
+        (model.bias_drift_settle <= 0.0).then(|| {
+            let plain = Model {
+                bias_drift_n: 0.0,
+                bias_drift_settle: 0.0,
+                ..model.clone()
+            };
+            ("total_n", 0.0, plain)
+        })
+    }
+
     fn report(&self, model: &Model, context: &ReportContext<'_>) -> serde_json::Value {
         let length = context.session_span_s.max(1e-9);
         let (rate, settle_s) = start_rate(model, length);

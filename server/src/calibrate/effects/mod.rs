@@ -220,6 +220,15 @@ pub trait Effect: Sync {
     /// One sentence: what was found and what the simulator gained.
     fn sentence(&self, model: &Model, context: &ReportContext<'_>) -> String;
 
+    /// The part this effect adds to the one it [`contains`](Effect::contains): the key
+    /// of the parameter that carries it, that parameter's no-effect value, and `model`
+    /// without it (`None`: no such single part). Where the refit's 95 % interval of
+    /// that parameter holds the no-effect value, the simpler effect is named (see
+    /// `calibrate::simpler`).
+    fn extra_part(&self, _model: &Model) -> Option<(&'static str, f64, Model)> {
+        None
+    }
+
     /// Keys of its parameters the recordings cannot determine: the report does not
     /// warn that such a parameter stopped at a bound (a tie rule put it there) and the
     /// sentence says what is known instead.
