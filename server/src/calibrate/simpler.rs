@@ -13,7 +13,7 @@ use super::model::FitDiagnostics;
 use super::replay::Model;
 
 /// Each accepted effect whose refit left its extra part indistinguishable from none
-/// ([`effects::Effect::reduced`]) replaced by the effect it contains: the model without
+/// ([`effects::Effect::extra_part`]) replaced by the effect it contains: the model without
 /// the extra part, the estimates renamed and the extra part's dropped, the evidence
 /// saying so. `true` when something was replaced (the caller replays).
 pub fn name_the_simpler(
