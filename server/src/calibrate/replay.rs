@@ -337,12 +337,12 @@ pub struct Prediction {
     pub breath_rise: Vec<f64>,
 }
 
-/// Linear interpolation of a sampled series at time `t`.
 /// The sensor low-pass's order where a saved model has none: one pole.
 fn one_pole() -> u32 {
     1
 }
 
+/// Linear interpolation of a sampled series at time `t`.
 fn interp3(t_axis: &[f64], values: &[[f64; 3]], t: f64) -> [f64; 3] {
     let k = t_axis
         .partition_point(|&x| x <= t)
