@@ -4,11 +4,11 @@
 //! stiffness (a stiffer site and a higher skin both give more force at a given probe
 //! height) — which is exactly the effect `site_heterogeneity` must name. Contact onset
 //! tells them apart: a higher skin moves the onset, a stiffer tissue does not. So each
-//! approach from free air gives the height where the force leaves its free-air level:
-//! where it crossed `BAND_N[0]` above that level, raised by that force over the slope
-//! of the force in the band (see `crossing_onset`: within about `BAND_N[0] / k` of
-//! the skin whatever the contact damping's form; a stiffness scale changes the slope,
-//! barely where the force starts). A recording's surface is the median over its approaches.
+//! approach from free air gives the height where the force leaves its free-air level,
+//! by a two-phase fit over the free air before it and the force's rise through the
+//! band `BAND_N` above that level (see [`touch_down`]: a damping's jump at touch-down
+//! and a probe face's toe do not move it, a stiffness scale changes only the rise). A
+//! recording's surface is the median over its approaches.
 //!
 //! Only approaches **from free air** count: the force must have stayed at its free-air
 //! level for [`MIN_FREE_AIR_S`] before the approach, with the probe above the onset it
@@ -26,6 +26,7 @@
 //! no onset (its surface is fitted instead).
 
 use super::free_air::{free_air_level, median};
+use super::touch_down;
 use crate::recordings::Recording;
 
 /// The onset band above the free-air level \[N\]: its lower edge is at least this, or
@@ -65,43 +66,47 @@ impl Approach {
     }
 }
 
-/// How late `order` equal poles at `pole_hz` each show a touch-down \[s\]: the force
-/// `jump + rate·t` from `t = 0` (a contact damping's `c·v` at once, the spring's `k·v`
-/// a second) crossing the onset band's nominal lower edge, against the plain force. A
-/// ramp comes out the cascade's whole lag `n/2πf_p` late; a jump well above the band
-/// within a part of it (a jump four times the edge: under half), so a low-pass is not a
-/// delay at touch-down (see `Model::onset_lag_s`).
+/// How late `order` equal poles at `pole_hz` each show a touch-down to the onset's
+/// reading \[s\]: the force `jump + rate·t` from `t = 0` (a contact damping's `c·v` at
+/// once, the spring's `k·v` a second) through the cascade, read as an approach is (the
+/// two-phase fit of [`touch_down::departure`] over [`LOCAL_LEVEL_S`] of free air and
+/// the band up to its nominal top), against the touch itself. A ramp comes out the
+/// cascade's whole lag `n/2πf_p` late; a jump well above the band's edge a small part of
+/// it, so a low-pass is not a delay at touch-down (see `Model::onset_lag_s`).
 pub fn touch_down_lag(pole_hz: f64, order: u32, jump: f64, rate: f64) -> f64 {
-    let low = BAND_N[0];
+    let (low, high) = (BAND_N[0], BAND_N[1]);
     let tau = 1.0 / (2.0 * std::f64::consts::PI * pole_hz);
     let whole = f64::from(order.max(1)) * tau;
     if jump < low && rate <= 0.0 {
         // A probe at rest never touches down: the ramp's lag, whatever it is worth.
         return whole;
     }
-    let plain = if jump >= low {
+    // Long enough for the filtered force to reach the band's top, however slow.
+    let plain = if jump >= high {
         0.0
     } else {
-        (low - jump) / rate
+        (high - jump) / rate.max(1e-9)
     };
-    let give_up = plain + 50.0 * whole;
-    // At most a million steps, however slow the approach.
-    let dt = (tau / 200.0).max(give_up / 1e6);
+    let span = (plain + 10.0 * whole).min(60.0);
+    let dt = (tau / 50.0).max((LOCAL_LEVEL_S + span) / 4000.0);
     let alpha = 1.0 - (-dt / tau).exp();
     let mut stages = vec![0.0; order.max(1) as usize];
-    let mut t = 0.0;
-    while t < give_up {
-        t += dt;
-        let mut input = jump + rate * t;
+    let (mut times, mut force) = (Vec::new(), Vec::new());
+    let mut t = -LOCAL_LEVEL_S;
+    while t < span {
+        let mut input = if t > 0.0 { jump + rate * t } else { 0.0 };
         for y in &mut stages {
             *y += alpha * (input - *y);
             input = *y;
         }
-        if input >= low {
-            return (t - plain).max(0.0);
+        times.push(t);
+        force.push(input);
+        if input >= high && force.iter().filter(|&&f| f > 0.0).count() >= MIN_BAND_SAMPLES {
+            break;
         }
+        t += dt;
     }
-    whole
+    touch_down::departure(&times, &force, MIN_BAND_SAMPLES, low).map_or(whole, |at| at.max(0.0))
 }
 
 /// The surface height [m, world z] under `rec`'s probe at its contact onsets, if it
@@ -218,11 +223,11 @@ pub fn approaches(rec: &Recording) -> Vec<Approach> {
                 rec.t[first],
                 band.len(),
                 -rec.v[first][2],
-                crossing_onset(rec, first, &band, local, low)
+                skin_onset(rec, (free_from, first, last), local, low)
             );
             if band.len() >= MIN_BAND_SAMPLES
                 && rises
-                && let Some(z) = crossing_onset(rec, first, &band, local, low)
+                && let Some(z) = skin_onset(rec, (free_from, first, last), local, low)
                 && highest >= z
             {
                 onsets.push(Approach {
@@ -256,87 +261,24 @@ fn local_level(rec: &Recording, free_from: usize, first: usize) -> Option<f64> {
     (window.len() >= MIN_BAND_SAMPLES).then(|| median(window))
 }
 
-/// Where the force crossed `level + low` on the way in (interpolated between the
-/// samples around `first`), raised by `low` over the force's slope in the band's lower
-/// part (`f − level` below 3 × `low`; the whole band if that holds under 3 samples): the
-/// height where an elastic force would have left `level`. Where the samples are sparse
-/// (the probe moved more than twice that raise between the last sample below the band
-/// and the first in it), the middle of those two samples' heights, if lower. `None`
-/// unless the force rises as the probe goes down.
-///
-/// Why the middle: between two samples that far apart the chord's crossing assumes the
-/// force rose from the upper one, which puts the skin near the top of the bracket; a
-/// contact damping's jump at touch-down makes the first sample's force large however
-/// shallow it is, so its size does not place the skin either. On holdout-3 seed 19 a
-/// 50 Hz chirp approached at 26 mm/s (0.5 mm a sample) read the skin 0.49 mm high (now
-/// 0.15 mm), and its replay sat 0.36 N over the measured force throughout.
-///
-/// Why not a line through the whole band extrapolated back: the force there is
-/// `k·(z_s − z) + c·(−ż)`, and the damping part shifts the line by `c·v/k` (0.8 mm at
-/// 20 mm/s and 40 ms) and tilts it where the probe slows down inside the band (a smooth
-/// move: 2 mm on a blind generator's press). The crossing is biased by at most `low`
-/// over the slope the band shows, whatever the damping's form: `low / k` (0.06–0.25 mm
-/// at 0.15 N and 600–2500 N/m) where the probe keeps its speed, up to about twice that
-/// where it slows down inside the band; the global surface offset takes the common
-/// part. Measured against the true skin on two generators' no-effect data (session 26,
-/// a port of this reading to numpy): the crossings spread 0.03–0.11 mm over the
-/// approaches of a dataset, the lines drawn through the band 0.05–0.34 mm.
-fn crossing_onset(
+/// The skin's height at an approach: where the force left `level`, by the two-phase
+/// fit of [`touch_down::departure`] over the last [`LOCAL_LEVEL_S`] of free air before
+/// `first` (from `free_from` on) and the band `first..last`, in the probe's height
+/// (`low`, the band's lower edge, its force resolution).
+fn skin_onset(
     rec: &Recording,
-    first: usize,
-    band: &[usize],
+    (free_from, first, last): (usize, usize, usize),
     level: f64,
     low: f64,
 ) -> Option<f64> {
-    let lower: Vec<usize> = band
-        .iter()
-        .copied()
-        .filter(|&k| rec.f[k][2] - level < 3.0 * low)
-        .collect();
-    let slope = slope(rec, if lower.len() >= 3 { &lower } else { band })?;
-    let at = |k: usize| (rec.p[k][2], rec.f[k][2] - level);
-    let (z1, f1) = at(first);
-    let raise = -low / slope;
-    let (crossing, bracket) = match first.checked_sub(1).map(at) {
-        Some((z0, f0)) if f0 < low && f1 > f0 => (z0 + (low - f0) / (f1 - f0) * (z1 - z0), z0 - z1),
-        _ => (z1, 0.0),
-    };
-    // Sparse samples: the bracket's middle (see above).
-    Some((crossing + raise).min(z1 + raise.max(0.5 * bracket)))
-}
-
-/// The force's slope in the probe height, `b` of `f = a + b·z + e·ż` fitted through
-/// `samples` (the damping part `e·ż` apart, so a probe slowing down inside the band does
-/// not flatten it; at a steady speed `e·ż` is a constant and the plain line's slope is
-/// taken); `None` unless `b < 0` (the force rises as the probe goes down).
-fn slope(rec: &Recording, samples: &[usize]) -> Option<f64> {
-    let m = samples.len() as f64;
-    let mean = |x: &dyn Fn(usize) -> f64| samples.iter().map(|&k| x(k)).sum::<f64>() / m;
-    let (zm, vm, fm) = (
-        mean(&|k| rec.p[k][2]),
-        mean(&|k| rec.v[k][2]),
-        mean(&|k| rec.f[k][2]),
-    );
-    let (mut szz, mut svv, mut szv, mut szf, mut svf) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    for &k in samples {
-        let (dz, dv, df) = (rec.p[k][2] - zm, rec.v[k][2] - vm, rec.f[k][2] - fm);
-        szz += dz * dz;
-        svv += dv * dv;
-        szv += dz * dv;
-        szf += dz * df;
-        svf += dv * df;
-    }
-    if szz <= 0.0 {
-        return None;
-    }
-    let det = szz * svv - szv * szv;
-    // The speed's own variation must be well apart from the height's.
-    let b = if svv > 0.0 && det > 0.1 * szz * svv {
-        (szf * svv - svf * szv) / det
-    } else {
-        szf / szz
-    };
-    (b < 0.0).then_some(b)
+    let lead_from = rec.t.get(first)? - LOCAL_LEVEL_S;
+    let from = (free_from..first)
+        .find(|&k| rec.t[k] >= lead_from)
+        .unwrap_or(first);
+    let window = from..last.min(rec.len());
+    let depth: Vec<f64> = window.clone().map(|k| -rec.p[k][2]).collect();
+    let force: Vec<f64> = window.map(|k| rec.f[k][2] - level).collect();
+    touch_down::departure(&depth, &force, MIN_BAND_SAMPLES, low).map(|x| -x)
 }
 
 #[cfg(test)]
@@ -459,10 +401,12 @@ mod tests {
                 (ramp / full - 1.0).abs() < 0.05,
                 "{order}: {ramp} s for {full} s"
             );
-            // A jump to four times the band's edge: under half of it.
+            // A jump to four times the band's edge: a part of it (the two-phase fit puts
+            // a filtered step near the middle of its rise: 0.65 of one pole's time
+            // constant, 0.8 of two poles' lag).
             let jump = touch_down_lag(pole, order, 4.0 * BAND_N[0], 0.5);
             assert!(
-                jump < 0.5 * full,
+                jump < 0.9 * full,
                 "{order}: {jump} s against a lag of {full} s"
             );
             // A probe at rest: finite, at once.
