@@ -28,6 +28,7 @@ pub mod gain;
 pub mod geometry;
 pub mod high_pass;
 pub mod lateral_share;
+pub mod lone_protocol;
 pub mod mismatch;
 pub mod model;
 pub mod noise;
@@ -42,6 +43,7 @@ pub mod simpler;
 pub mod split;
 pub mod synth;
 pub mod thesis_method;
+pub mod touch_down;
 pub mod trajectory;
 pub mod unexplained;
 pub mod weighing;
@@ -144,6 +146,8 @@ pub struct Outcome {
     pub dataset: Dataset,
     /// Train, validation and test recordings.
     pub split: Split,
+    /// Files cut in two so their protocol has a validation part.
+    pub lent: Vec<lone_protocol::Lent>,
     /// Baseline model.
     pub baseline: Model,
     /// What the baseline's fit says about itself.
@@ -188,7 +192,6 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
     for rec in &mut dataset.recordings {
         *rec = trajectory::smoothed(rec);
     }
-    let n = dataset.recordings.len();
     let mut sources: Vec<&str> = dataset
         .meta
         .recordings
@@ -207,8 +210,10 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
             sources.len()
         )));
     }
+    let lent = lone_protocol::lend(&mut dataset);
+    let n = dataset.recordings.len();
     let setup = baseline::setup(&dataset)?;
-    let split = split::split(&dataset, options.seed);
+    let split = split::split(&dataset, options.seed, &lent);
     let all: Vec<usize> = (0..n).collect();
 
     progress.stage("fitting the baseline and the surface per site (replaying the simulator)");
@@ -261,6 +266,7 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
     let outcome = Outcome {
         dataset,
         split,
+        lent,
         baseline: base,
         baseline_fit: fitted.diagnostics,
         surface_from_heldout: fitted.surface_from_heldout,

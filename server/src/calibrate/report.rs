@@ -257,6 +257,11 @@ pub fn write(o: &Outcome, out: &Path) -> Result<(), CalibrateError> {
             "heldout": files(&heldout),
             "rule": "whole recordings (seeded): train fits every parameter; validation chooses and gates effects; test is used for nothing but the before/after. A protocol with 3+ recordings gives one to validation and one to test, a protocol with 2 gives its held-out one to validation (every excitation where effects are chosen); never a site's last training recording",
             "protocols_not_in_test": super::split::untested_protocols(&o.dataset, &o.split),
+            "lent_to_validation": o.lent.iter().map(|l| serde_json::json!({
+                "file": l.file,
+                "cuts_s": l.cuts_s,
+                "rule": "its protocol's only file: cut where each quarter of its contact time had passed; the first and third pieces train, the second and fourth validate",
+            })).collect::<Vec<_>>(),
             "fitted_on_heldout": {
                 "breathing_phase_rate_and_track": "per recording (a nuisance state of each recording), its phase followed breath by breath",
                 "surface_at_contact_onset": "per recording, from its own approaches from free air (less the modelled breathing rise at those moments)",
@@ -447,6 +452,18 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
         o.noise_source.as_str(),
         o.verdict.floor_n
     );
+    for lent in &o.lent {
+        let _ = writeln!(
+            s,
+            "`{}` is its protocol's only recording: cut at {} s, where each quarter of its contact time had passed; its first and third pieces fit, its second and fourth choose effects (validation), so what that excitation drives can be chosen at all.\n",
+            lent.file,
+            lent.cuts_s
+                .iter()
+                .map(|t| format!("{t:.2}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
     let untested = super::split::untested_protocols(&o.dataset, &o.split);
     if !untested.is_empty() {
         let _ = writeln!(

@@ -17,11 +17,14 @@
 //! one whose distance from the torso's centre a training site still covers. Segments of one file split at a gap stay together. With nothing held out
 //! that way, a third of the recordings are (half to
 //! validation, half to test), and with two recordings one trains and one validates.
+//! A protocol recorded in one file only lends that file's later half to validation
+//! ([`super::lone_protocol`]).
 
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_pcg::Pcg64Mcg;
 
+use super::lone_protocol::Lent;
 use crate::recordings::Dataset;
 
 /// The three sets, as sorted recording indices.
@@ -137,13 +140,15 @@ fn last_of_site_to_hold(files: &[File], held: &[usize], candidates: &[usize]) ->
 /// Radii closer than this are one radius to [`last_of_site_to_hold`].
 const RADIUS_MATCH_M: f64 = 0.005;
 
-/// Split `dataset`'s recordings (seeded). Files are what is counted and moved: the
+/// Split `dataset`'s recordings (seeded), the later parts of files `lent` (their
+/// protocol's only ones, see [`super::lone_protocol`]) to validation. Files are what is
+/// counted and moved: the
 /// segments of a file cut at a gap are one recording (counted once in its protocol,
 /// never in two sets). Counting segments instead left a protocol of two files with
 /// four entries, so one file went to validation and its sibling to test, the merge
 /// sent both to test, and neither chirp nor slide was left to choose effects on
 /// (holdout-3 seed 12: friction and tissue inertia judged without their excitation).
-pub fn split(dataset: &Dataset, seed: u64) -> Split {
+pub fn split(dataset: &Dataset, seed: u64, lent: &[Lent]) -> Split {
     let mut rng = Pcg64Mcg::seed_from_u64(seed);
     let files = files(dataset);
     let n = files.len();
@@ -209,7 +214,14 @@ pub fn split(dataset: &Dataset, seed: u64) -> Split {
         out.sort();
         out
     };
-    let (validation, test) = (entries_of(&validation), entries_of(&test));
+    let (mut validation, test) = (entries_of(&validation), entries_of(&test));
+    validation.extend(
+        lent.iter()
+            .flat_map(|l| l.entries.iter().copied())
+            .filter(|i| !test.contains(i)),
+    );
+    validation.sort();
+    validation.dedup();
     let train = (0..dataset.meta.recordings.len())
         .filter(|i| !validation.contains(i) && !test.contains(i))
         .collect();
@@ -298,7 +310,7 @@ mod tests {
     fn a_protocol_of_two_files_cut_by_gaps_trains_on_one_and_validates_on_the_other() {
         let data = with_gaps();
         for seed in 0..20 {
-            let s = split(&data, seed);
+            let s = split(&data, seed, &[]);
             for set in [&s.train, &s.validation] {
                 assert_eq!(
                     protocols_in(&data, set),
@@ -351,7 +363,7 @@ mod tests {
     fn presses_each_alone_at_a_site_still_validate_and_test() {
         let data = seed_17_layout();
         for seed in 0..20 {
-            let s = split(&data, seed);
+            let s = split(&data, seed, &[]);
             assert_eq!(
                 protocols_in(&data, &s.validation),
                 ["chirp", "press", "slide"],
@@ -394,10 +406,10 @@ mod tests {
             .collect();
         let mut centre_held_before = 0;
         for seed in 0..20 {
-            let s = split(&data, seed);
+            let s = split(&data, seed, &[]);
             assert!(s.train.contains(&3), "seed {seed}: {s:?}");
             assert_eq!(protocols_in(&data, &s.test), ["press"], "seed {seed}");
-            let before = split(&dataset_without_samples(&data), seed);
+            let before = split(&dataset_without_samples(&data), seed, &[]);
             centre_held_before += usize::from(!before.train.contains(&3));
         }
         // Without positions the rule has nothing to go on, and the centre is held out
@@ -424,7 +436,7 @@ mod tests {
             ("f.csv", "right", "press", 1),
         ]);
         for seed in 0..20 {
-            let s = split(&data, seed);
+            let s = split(&data, seed, &[]);
             assert_eq!(
                 protocols_in(&data, &s.train),
                 ["chirp", "press"],
