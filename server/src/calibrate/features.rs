@@ -70,6 +70,8 @@ pub struct Series {
     pub predicted_xy: Vec<[f64; 2]>,
     /// Probe velocity, world x and y [m/s].
     pub vxy: Vec<[f64; 2]>,
+    /// Probe position, world x and y \[m\].
+    pub pxy: Vec<[f64; 2]>,
     /// Share of the session elapsed at each sample (0 at its first sample, 1 at its
     /// last; see [`SessionClock`]).
     pub session: Vec<f64>,
@@ -204,6 +206,7 @@ impl Series {
             measured_xy: rec.f.iter().map(|f| [f[0], f[1]]).collect(),
             predicted_xy: prediction.fxy.clone(),
             vxy: rec.v.iter().map(|v| [v[0], v[1]]).collect(),
+            pxy: rec.p.iter().map(|p| [p[0], p[1]]).collect(),
             session: rec.t.iter().map(|&t| clock.share(index, t)).collect(),
             placed_by: None,
             onsets: super::onset::approaches(rec),

@@ -230,7 +230,7 @@ pub fn calibrate(options: &CalibrateOptions) -> Result<Outcome, CalibrateError> 
     let sites: Vec<String> = setup.sites.iter().map(|(name, _)| name.clone()).collect();
     let mut train = vec![false; n];
     split.train.iter().for_each(|&i| train[i] = true);
-    base.site_lateral_share =
+    (base.site_lateral_share, base.lateral_share_gradient) =
         lateral_share::site_shares(&series_of(&dataset, &setup, &predictions), &train, &sites);
     let predictions = cache.replay_all(&setup, &base, &dataset.recordings, &all);
     let series = series_of(&dataset, &setup, &predictions);

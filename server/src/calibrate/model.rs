@@ -155,6 +155,15 @@ impl Free {
     };
 }
 
+/// How far the baseline may move the force's samples against the position's \[s\],
+/// either way: the streams of a real log are stamped apart (an F/T interface's transport
+/// latency of about a millisecond, a servo's and an arm's compliance lag, topics of
+/// different rates), and a lag of a few milliseconds under the force left a spurious
+/// delay to be named or an excess no other effect could explain (holdout-4 seed 1's
+/// depth damping, 2.4 ms). Up to the least lag a sensor stage is named at
+/// ([`effects::MIN_SENSOR_LAG_S`]): beyond it the lag is a delay.
+pub const TIMING_S: f64 = effects::MIN_SENSOR_LAG_S;
+
 /// Which residual blocks a parameter moves.
 #[derive(Debug, Clone, PartialEq)]
 enum Touch {
@@ -204,6 +213,15 @@ fn pack(
         }
         if !free.free_air {
             p.global("baseline.damping", model.damping, (0.1, 500.0, 0.25));
+            // The force's and the position's relative timing, a nuisance of the logs
+            // (see `TIMING_S`), unless a delay is fitted, which moves it further.
+            if !effects.contains(&"sensor_delay") {
+                p.global(
+                    "baseline.timing_s",
+                    model.delay.clamp(-TIMING_S, TIMING_S),
+                    (-TIMING_S, TIMING_S, 0.001),
+                );
+            }
         }
         // With every site's height free, a global offset would be redundant.
         let anchored = free.geometry == Geometry::Fixed
@@ -292,6 +310,7 @@ fn unpack(template: &Model, names: &[String], log: &[bool], x: &[f64]) -> Model 
             ("baseline", "stiffness") => m.stiffness = v,
             ("baseline", "damping") => m.damping = v,
             ("baseline", "surface_offset_m") => m.surface_offset = v,
+            ("baseline", "timing_s") => m.delay = v,
             ("surface", key) => {
                 let site = key.trim_end_matches(".height_m");
                 if let Some(g) = m.surface.iter_mut().find(|g| g.site == site) {

@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 
 use super::free_air::median;
 use super::geometry::{self, PathSurface, SiteSurface};
+use super::lateral_share::ShareGradient;
 use super::onset::Approach;
 use super::session::{SessionClock, settled_share};
 use crate::recordings::Recording;
@@ -118,6 +119,10 @@ pub struct Model {
     /// (baseline geometry, see [`super::lateral_share`]).
     #[serde(default)]
     pub site_lateral_share: Vec<(String, [f64; 2])>,
+    /// How those shares change over the torso (the skin's curvature), where three sites
+    /// gave their own (see [`super::lateral_share`]).
+    #[serde(default)]
+    pub lateral_share_gradient: Option<ShareGradient>,
     /// Stiffness scale per site name.
     pub site_scale: Vec<(String, f64)>,
     /// The body's surface height at each site relative to `surface_offset` (baseline
@@ -190,6 +195,7 @@ impl Model {
             friction_viscous: 0.0,
             lateral_share: [0.0; 2],
             site_lateral_share: Vec::new(),
+            lateral_share_gradient: None,
             site_scale: Vec::new(),
             surface: Vec::new(),
             paths: Vec::new(),
@@ -208,6 +214,7 @@ impl Model {
             bias_drift_settle: 0.0,
             lateral_share: [0.0; 2],
             site_lateral_share: Vec::new(),
+            lateral_share_gradient: None,
             ..self.clone()
         }
     }
@@ -786,21 +793,27 @@ pub fn sense(
             }
         }
     }
-    let site_share = setup
-        .recording_sites
-        .get(index)
+    let site = setup.recording_sites.get(index);
+    let site_share = site
         .and_then(|site| model.site_lateral_share.iter().find(|(s, _)| s == site))
         .map_or([0.0; 2], |(_, share)| *share);
     let [sx, sy] = [0, 1].map(|k| model.lateral_share[k] + site_share[k]);
+    // Away from where its site's share was read, the skin's tilt has turned with its
+    // curvature.
+    let turned = |p: &[f64; 3]| match (&model.lateral_share_gradient, site) {
+        (Some(g), Some(site)) => g.add(site, [p[0], p[1]]),
+        _ => [0.0; 2],
+    };
     let mut out = Prediction::default();
     for (i, &t) in recording.t.iter().enumerate() {
         let f = interp(sim_t, &sim_f, t - model.delay);
         let drift = model.bias_drift_n
             * settled_share(setup.session.share(index, t), model.bias_drift_settle);
         out.fz.push(f + model.bias + drift);
+        let [tx, ty] = turned(&recording.p[i]);
         out.fxy.push([
-            interp(sim_t, &sim_fx, t - model.delay) + sx * f,
-            interp(sim_t, &sim_fy, t - model.delay) + sy * f,
+            interp(sim_t, &sim_fx, t - model.delay) + (sx + tx) * f,
+            interp(sim_t, &sim_fy, t - model.delay) + (sy + ty) * f,
         ]);
         let k = (((t - t0) / REPLAY_DT).round() as usize).min(steps - 1);
         out.contact.push(sim_contact[k]);

@@ -110,6 +110,7 @@ fn model_json(m: &Model) -> serde_json::Value {
         "friction_viscous_ns_per_m": m.friction_viscous,
         "probe_tilt_share": m.lateral_share,
         "tangential_share_by_site": m.site_lateral_share.iter().cloned().collect::<std::collections::BTreeMap<_, _>>(),
+        "tangential_share_gradient_per_m": m.lateral_share_gradient.as_ref().map(|g| g.per_m),
         "stiffness_scale_by_site": m.site_scale.iter().cloned().collect::<std::collections::BTreeMap<_, _>>(),
     })
 }
@@ -496,6 +497,14 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
         fig.test[0],
         o.baseline_fit.convergence.as_str()
     );
+    if b.delay != 0.0 {
+        let _ = writeln!(
+            s,
+            "The force's samples sit {:+.1} ms behind the position's: the streams' relative timing, a nuisance fitted with the baseline (within ±{:.0} ms; a longer lag is a sensor delay).\n",
+            1000.0 * b.delay,
+            1000.0 * super::model::TIMING_S
+        );
+    }
     let _ = writeln!(
         s,
         "Surface by site, and each recording's correction along its path (nuisance geometry, never an effect):\n\n| site / recording | height [mm] (recording: correction) | slope [mm/cm] | curvature [1/m] | from |\n|---|---:|---:|---:|---|"
@@ -548,6 +557,13 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
             "\nShare of the normal force in fx, fy at rest by site (the skin's and the probe's tilt; nuisance geometry, read on training recordings): {}.",
             shares.join(", ")
         );
+        if let Some(g) = &o.calibrated.lateral_share_gradient {
+            let _ = writeln!(
+                s,
+                "Its change over the torso (the skin's curvature, from those sites; added where a probe is away from its site): ∂share/∂x ({:+.1}, {:+.1}) %/cm, ∂share/∂y ({:+.1}, {:+.1}) %/cm.",
+                g.per_m[0][0], g.per_m[1][0], g.per_m[0][1], g.per_m[1][1]
+            );
+        }
     }
     let _ = writeln!(s, "\n## Where the baseline misses\n");
     let top = |shares: &[super::mismatch::Share], n: usize, min: f64| -> String {

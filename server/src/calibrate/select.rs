@@ -1463,6 +1463,7 @@ mod tests {
                     measured_xy: vec![[0.0; 2]; n],
                     predicted_xy: vec![[0.0; 2]; n],
                     vxy: vec![[0.0; 2]; n],
+                    pxy: vec![[0.0; 2]; n],
                     session: (0..n)
                         .map(|i| (index * n + i) as f64 / (12 * n) as f64)
                         .collect(),

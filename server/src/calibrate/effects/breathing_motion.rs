@@ -1032,6 +1032,7 @@ mod tests {
             measured_xy: vec![[0.0; 2]; n],
             predicted_xy: vec![[0.0; 2]; n],
             vxy: vec![[0.0; 2]; n],
+            pxy: vec![[0.0; 2]; n],
             session: vec![0.0; n],
             xy: [0.0; 2],
             onsets: Vec::new(),

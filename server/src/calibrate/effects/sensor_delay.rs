@@ -35,8 +35,10 @@ impl Effect for SensorDelay {
         model.delay < super::MIN_SENSOR_LAG_S
     }
 
+    /// The signature's delay is read against the model's prediction, which has the
+    /// baseline's timing already (`model::TIMING_S`): it adds to it.
     fn apply(&self, params: &Params, model: &mut Model, _setup: &Setup) {
-        model.delay = number(params, "delay_s");
+        model.delay += number(params, "delay_s");
     }
 
     fn remove(&self, model: &mut Model, baseline: &Model) {
