@@ -69,7 +69,7 @@ impl Approach {
 /// How late `order` equal poles at `pole_hz` each show a touch-down to the onset's
 /// reading \[s\]: the force `jump + rate·t` from `t = 0` (a contact damping's `c·v` at
 /// once, the spring's `k·v` a second) through the cascade, read as an approach is (the
-/// two-phase fit of [`touch_down::departure`] over [`LOCAL_LEVEL_S`] of free air and
+/// two-phase fit of [`touch_down::departure`] over 0.3 s (`LOCAL_LEVEL_S`) of free air and
 /// the band up to its nominal top), against the touch itself. A ramp comes out the
 /// cascade's whole lag `n/2πf_p` late; a jump well above the band's edge a small part of
 /// it, so a low-pass is not a delay at touch-down (see `Model::onset_lag_s`).
