@@ -107,7 +107,13 @@ impl Effect for SensorFilter {
             .collect()
     }
 
+    /// The filter's lag takes in the streams' timing the baseline fitted (the two are
+    /// not told apart, see `model::TIMING_S`): a shift within it is dropped, a named
+    /// delay's (longer) is kept.
     fn apply(&self, params: &Params, model: &mut Model, _setup: &Setup) {
+        if model.delay.abs() <= crate::calibrate::model::TIMING_S + 1e-12 {
+            model.delay = 0.0;
+        }
         model.filter_cutoff_hz = number(params, "cutoff_hz");
         model.filter_order = params
             .get("order")
