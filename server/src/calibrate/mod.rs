@@ -39,6 +39,7 @@ pub mod replay;
 pub mod report;
 pub mod select;
 pub mod session;
+pub mod share_gradient;
 pub mod simpler;
 pub mod split;
 pub mod synth;

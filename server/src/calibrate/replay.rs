@@ -13,9 +13,9 @@ use serde::{Deserialize, Serialize};
 
 use super::free_air::median;
 use super::geometry::{self, PathSurface, SiteSurface};
-use super::lateral_share::ShareGradient;
 use super::onset::Approach;
 use super::session::{SessionClock, settled_share};
+use super::share_gradient::ShareGradient;
 use crate::recordings::Recording;
 use crate::sim::ft_sensor::{low_pass_sampled, pole_hz};
 use crate::sim::torso::{
