@@ -379,6 +379,17 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
         }
     }
     let (_, edge_rise, centre_rise) = shape;
+    tracing::debug!(
+        "breathing: rises by training recording {:?}; edge rise {edge_rise:.2}, centre {centre_rise:.5} m",
+        rises
+            .iter()
+            .map(|(r, s)| (
+                s.index,
+                (r * 1e5).round() / 1e5,
+                (profile(s, 0.0) * 100.0).round() / 100.0
+            ))
+            .collect::<Vec<_>>()
+    );
     let mut phases = Vec::new();
     let mut freqs = Vec::new();
     let mut slopes = Vec::new();
@@ -835,6 +846,10 @@ const TRACK_MIN_PERIODS: f64 = 0.75;
 /// residual does not.
 const TRACK_AMPLITUDE_FACTOR: f64 = 2.0;
 
+/// Below this share of the contact time in steady stretches, a recording's phase track
+/// is read on every in-contact sample (see [`track_phase`]).
+const TRACK_HOLD_SHARE: f64 = 0.5;
+
 /// A recording's breathing phase breath by breath: the correction `(s since the first
 /// sample, rad)` to `phase` at knots half a breath apart.
 ///
@@ -860,12 +875,21 @@ fn track_phase(
     let reference = c.atan2(a);
     let stretches = steady_stretches(s);
     let steady_s = steady_seconds(s, &stretches);
+    let dt = (s.t[n - 1] - s.t[0]) / (n - 1) as f64;
+    let contact_s = s.contact.iter().filter(|c| **c).count() as f64 * dt;
     // The rows breathing_fit uses: steady stretches with their own offsets, or every
-    // in-contact sample when there are under 2 s of them.
+    // in-contact sample when there are under 2 s of them. Where the holds are a small
+    // part of the contact (a chirp after a short hold), every in-contact sample too,
+    // with a level of its own in each knot's window: the knots need breaths the holds
+    // do not cover (holdout-4 seed 1: a 29 s chirp with 3.7 s of holds had no knot,
+    // and so no track, while its breaths drifted a whole breath from a steady rate).
     let mut rows = vec![false; n];
     let mut offsets = Vec::new();
     if steady_s < 2.0 {
         rows.clone_from(&s.contact);
+    } else if steady_s < TRACK_HOLD_SHARE * contact_s {
+        rows.clone_from(&s.contact);
+        offsets.push(contact_mask(s));
     } else {
         for r in &stretches {
             let mut offset = vec![0.0; n];
@@ -876,11 +900,11 @@ fn track_phase(
             offsets.push(offset);
         }
     }
-    let dt = (s.t[n - 1] - s.t[0]) / (n - 1) as f64;
     let (sin, cos): (Vec<f64>, Vec<f64>) = s.t.iter().map(|&t| phase(t).sin_cos()).unzip();
     let mut columns = vec![sin, cos];
     columns.extend(offsets);
-    let mut knots: Vec<(f64, f64)> = Vec::new();
+    // Every knot's local fit first: (τ, local amplitude, phase shift).
+    let mut local_fits: Vec<(f64, f64, f64)> = Vec::new();
     let mut tau = 0.0;
     while s.t[0] + tau <= s.t[n - 1] {
         let centre = s.t[0] + tau;
@@ -891,19 +915,32 @@ fn track_phase(
         let covered = window.iter().filter(|w| **w).count() as f64 * dt;
         if covered >= TRACK_MIN_PERIODS * period {
             let beta = least_squares(&columns, residual, &window);
-            let local = beta[0].hypot(beta[1]);
-            let plausible = local >= amplitude / TRACK_AMPLITUDE_FACTOR
-                && local <= amplitude * TRACK_AMPLITUDE_FACTOR;
-            if plausible {
-                let shift = wrap(beta[1].atan2(beta[0]) - reference);
-                let unwrapped = match knots.last() {
-                    Some(&(_, previous)) => previous + wrap(shift - previous),
-                    None => shift,
-                };
-                knots.push((tau, unwrapped));
-            }
+            let shift = wrap(beta[1].atan2(beta[0]) - reference);
+            local_fits.push((tau, beta[0].hypot(beta[1]), shift));
         }
         tau += TRACK_SPACING_PERIODS * period;
+    }
+    // The depth a breath keeps: the recording's amplitude at the phase given, or the
+    // local fits' median where that is larger. A phase that drifts a breath or more
+    // across the recording (a sigh's long breath, a slower stretch) cancels the
+    // whole-recording fit while every breath stays as deep (holdout-4 seed 1: an
+    // upper-left chirp whose breaths ran 4.4 s against the common 3.5 s had no knot
+    // within a factor 2 of its diluted amplitude, so no track at all).
+    let mut locals: Vec<f64> = local_fits.iter().map(|f| f.1).collect();
+    locals.sort_by(f64::total_cmp);
+    let typical = locals.get(locals.len() / 2).copied().unwrap_or(0.0);
+    let depth = amplitude.max(typical);
+    let mut knots: Vec<(f64, f64)> = Vec::new();
+    for (tau, local, shift) in local_fits {
+        let plausible =
+            local >= depth / TRACK_AMPLITUDE_FACTOR && local <= depth * TRACK_AMPLITUDE_FACTOR;
+        if plausible {
+            let unwrapped = match knots.last() {
+                Some(&(_, previous)) => previous + wrap(shift - previous),
+                None => shift,
+            };
+            knots.push((tau, unwrapped));
+        }
     }
     knots
 }
@@ -1073,6 +1110,38 @@ mod tests {
         );
         // The amplitude of the breath's force: k·A/2 = 1.5 N.
         assert!((a.hypot(c) - 1.5).abs() < 0.1, "amplitude {}", a.hypot(c));
+    }
+
+    /// A chirp after a 3 s hold, breathing at 0.23 Hz while its rate is sought from
+    /// 0.27 Hz: over 30 s the steady rate drifts a whole breath off, which cancels the
+    /// whole-recording fit. The track reads every in-contact sample (the hold is too
+    /// short for its knots) and judges each knot against the breaths' typical depth,
+    /// so it still follows them.
+    #[test]
+    fn the_phase_track_follows_a_chirp_whose_breaths_drift_a_whole_breath() {
+        let mut rng = Pcg64Mcg::seed_from_u64(13);
+        let t: Vec<f64> = (0..3000).map(|i| i as f64 * 0.01).collect();
+        let breath = |t: f64| 2.0 * (std::f64::consts::TAU * 0.23 * t).sin();
+        let residual: Vec<f64> = t
+            .iter()
+            .map(|&t| breath(t) + rng.random_range(-0.05..0.05))
+            .collect();
+        let mut s = held(t.clone(), residual.clone());
+        s.vz_held = t
+            .iter()
+            .map(|&t| if t < 3.0 { 0.0 } else { 0.01 })
+            .collect();
+        let chirp = Chirp::steady(0.27, 0.0);
+        let (_, a, c) = breathing_fit(&s, &residual, &chirp.phase_fn());
+        let (_, _, track) = follow_breaths(&s, &residual, chirp, (a, c));
+        assert!(track.len() > 10, "{} knots", track.len());
+        let sse = |phase: &dyn Fn(f64) -> f64| sinusoid_fit(&s, &residual, phase).0;
+        let steady = sse(&chirp.phase_fn());
+        let tracked = sse(&|t| chirp.phase(t) + track_at(&track, t));
+        assert!(
+            tracked < 0.1 * steady,
+            "SSE {steady:.1} at the steady rate, {tracked:.1} tracked"
+        );
     }
 
     /// A modelled breath a radian out of phase with the recording: re-read on the
