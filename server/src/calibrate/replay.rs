@@ -1130,6 +1130,57 @@ mod tests {
         );
     }
 
+    /// A press file at `xy`: the probe 6 mm down over 0.5–1 s from `start_z`, held to
+    /// 6 s, sampled at 1 kHz; the logger paused over 3.0–3.5 s. (The whole file, its two
+    /// segments.)
+    fn paused_press(xy: [f64; 2], start_z: f64) -> (Recording, [Recording; 2]) {
+        let depth_at = |t: f64| 0.006 * ((t - 0.5) / 0.5).clamp(0.0, 1.0);
+        let piece = |from: usize, to: usize| {
+            let t: Vec<f64> = (from..to).map(|k| k as f64 * 1e-3).collect();
+            let (p, v): (Vec<_>, Vec<_>) = t
+                .iter()
+                .map(|&t| {
+                    let moving = (0.5..1.0).contains(&t);
+                    (
+                        [xy[0], xy[1], start_z - depth_at(t)],
+                        [0.0, 0.0, if moving { -0.012 } else { 0.0 }],
+                    )
+                })
+                .unzip();
+            Recording {
+                f: vec![[0.0; 3]; t.len()],
+                t,
+                p,
+                v,
+                torque: None,
+                velocity_measured: true,
+            }
+        };
+        (piece(0, 6000), [piece(0, 3000), piece(3500, 6000)])
+    }
+
+    /// A flat path at `centre` for recording `recording`, its height from `source`.
+    fn flat_path(
+        recording: usize,
+        follows: Option<usize>,
+        centre: [f64; 2],
+        source: geometry::Source,
+    ) -> PathSurface {
+        PathSurface {
+            recording,
+            centre,
+            height_m: 0.0,
+            height_source: source,
+            anchor_m: 0.0,
+            follows,
+            along: [1.0, 0.0],
+            extent_m: 0.0,
+            slope: 0.0,
+            curvature_per_m: 0.0,
+            source: geometry::Source::Unfitted,
+        }
+    }
+
     #[test]
     fn a_segment_after_a_pause_is_replayed_as_its_whole_file() {
         // Pressed 6 mm deep over 0.5–1 s and held under a 2 s relaxation; the logger
@@ -1141,41 +1192,9 @@ mod tests {
             ratio: 0.5,
             tau_s: 2.0,
         });
-        let surface = setup.nominal_surface_z;
-        let depth_at = |t: f64| 0.006 * ((t - 0.5) / 0.5).clamp(0.0, 1.0);
-        let sample = |t: f64| {
-            let moving = (0.5..1.0).contains(&t);
-            (
-                [0.0, 0.0, surface + 0.002 - depth_at(t)],
-                [0.0, 0.0, if moving { -0.012 } else { 0.0 }],
-            )
-        };
-        let piece = |times: Vec<f64>| {
-            let (p, v): (Vec<_>, Vec<_>) = times.iter().map(|&t| sample(t)).unzip();
-            Recording {
-                f: vec![[0.0; 3]; times.len()],
-                t: times,
-                p,
-                v,
-                torque: None,
-                velocity_measured: true,
-            }
-        };
-        let ms = |from: usize, to: usize| (from..to).map(|k| k as f64 * 1e-3).collect();
-        let whole = piece(ms(0, 6000));
-        let segments = [piece(ms(0, 3000)), piece(ms(3500, 6000))];
-        let path = |recording: usize, follows: Option<usize>| PathSurface {
-            recording,
-            centre: [0.0, 0.0],
-            height_m: 0.0,
-            height_source: geometry::Source::Unfitted,
-            anchor_m: 0.0,
-            follows,
-            along: [1.0, 0.0],
-            extent_m: 0.0,
-            slope: 0.0,
-            curvature_per_m: 0.0,
-            source: geometry::Source::Unfitted,
+        let (whole, segments) = paused_press([0.0, 0.0], setup.nominal_surface_z + 0.002);
+        let path = |recording, follows| {
+            flat_path(recording, follows, [0.0, 0.0], geometry::Source::Unfitted)
         };
         model.paths = vec![path(0, None), path(1, Some(0))];
         let second = replay(&setup, &model, &segments, 1);
@@ -1205,49 +1224,15 @@ mod tests {
         let centre = torso.center_xy;
         let mut setup = flat_setup(torso);
         let surface = setup.nominal_surface_z;
-        let depth_at = |t: f64| 0.006 * ((t - 0.5) / 0.5).clamp(0.0, 1.0);
-        let piece = |times: Vec<f64>| {
-            let (p, v): (Vec<_>, Vec<_>) = times
-                .iter()
-                .map(|&t| {
-                    let moving = (0.5..1.0).contains(&t);
-                    (
-                        [centre[0], centre[1], surface + 0.001 - depth_at(t)],
-                        [0.0, 0.0, if moving { -0.012 } else { 0.0 }],
-                    )
-                })
-                .unzip();
-            Recording {
-                f: vec![[0.0; 3]; times.len()],
-                t: times,
-                p,
-                v,
-                torque: None,
-                velocity_measured: true,
-            }
-        };
-        let ms = |from: usize, to: usize| (from..to).map(|k| k as f64 * 1e-3).collect();
-        let whole = piece(ms(0, 6000));
-        let segments = [piece(ms(0, 3000)), piece(ms(3500, 6000))];
+        let (whole, segments) = paused_press(centre, surface + 0.001);
         let onset = Approach {
             t: 0.6,
             z: surface,
             speed: 0.012,
             xy: centre,
         };
-        let path = |recording: usize, follows: Option<usize>| PathSurface {
-            recording,
-            centre,
-            height_m: 0.0,
-            height_source: geometry::Source::Onset,
-            anchor_m: 0.0,
-            follows,
-            along: [1.0, 0.0],
-            extent_m: 0.0,
-            slope: 0.0,
-            curvature_per_m: 0.0,
-            source: geometry::Source::Unfitted,
-        };
+        let path =
+            |recording, follows| flat_path(recording, follows, centre, geometry::Source::Onset);
         // One breath through the file (0.25 Hz, a 3 mm rise, well up at the onset):
         // the second segment's phase is the file's at its first sample.
         let (freq, phase0) = (0.25, 2.0);
