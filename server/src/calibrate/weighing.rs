@@ -1,8 +1,8 @@
 //! Where a candidate effect's evidence is weighed ([`Region`]): on every sample, on the
 //! free-air samples, or on the residual high-passed above the breathing band. A region
 //! lets an effect be judged where the model's other errors cannot drown it: a sensor's
-//! offset where no body model acts, a motion-rate effect above the band where a
-//! breathing law's misfit lives. Selection gates a candidate on its region's figures
+//! offset where no body model acts, a motion-rate effect above the band, below which a
+//! breath's misfit and the body model's own (its law, its surface) live. Selection gates a candidate on its region's figures
 //! and requires the whole not to get worse (`select`).
 
 use super::effects::{FASTEST_BREATHING_HZ, Region};
@@ -26,8 +26,6 @@ pub struct Judging<'a> {
     pub train: &'a [bool],
     /// Validation recordings (by index).
     pub validation: &'a [bool],
-    /// A breathing law is in the model the residual is of.
-    pub breathing_modelled: bool,
 }
 
 /// How a region is read from a recording's residual.
@@ -45,8 +43,8 @@ enum View {
 
 impl Judging<'_> {
     /// How an effect judged in `region` is weighed on `series` (all recordings, in
-    /// order); `None` for everywhere, also where the region does not apply: too little
-    /// free air in train or validation, no breathing law modelled yet.
+    /// order); `None` for everywhere, also where the region does not apply (too little
+    /// free air in train or validation).
     pub fn weighing(&self, series: &[Series], region: Region) -> Option<Weighing> {
         let view = match region {
             Region::Everywhere => return None,
@@ -68,15 +66,10 @@ impl Judging<'_> {
                 }
                 View::Samples(samples)
             }
-            Region::AboveBreathing => {
-                if !self.breathing_modelled {
-                    return None;
-                }
-                View::HighPass {
-                    hz: ABOVE_BREATHING_HZ,
-                    dt: series.iter().map(|s| s.dt).collect(),
-                }
-            }
+            Region::AboveBreathing => View::HighPass {
+                hz: ABOVE_BREATHING_HZ,
+                dt: series.iter().map(|s| s.dt).collect(),
+            },
         };
         Some(Weighing { region, view })
     }

@@ -24,7 +24,7 @@ impl Effect for DepthDependentDamping {
         NAME
     }
 
-    /// Above the breathing band once a breath is modelled: its force follows the probe's velocity.
+    /// Above the breathing band: its force follows the probe's velocity.
     fn judged_in(&self) -> Region {
         Region::AboveBreathing
     }

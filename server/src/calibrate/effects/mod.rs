@@ -173,6 +173,19 @@ pub trait Effect: Sync {
     /// specificity test).
     fn signature(&self, series: &[Series], train: &[bool], base: Base) -> Option<Signature>;
 
+    /// Why the validation recordings cannot judge `sig` (`None`: they can; `validation`
+    /// holds them by index). A signature whose own part acts on training recordings
+    /// alone moves validation only through the baseline's readjustment fitted beside it,
+    /// which is no evidence for the effect.
+    fn unjudged(
+        &self,
+        _sig: &Signature,
+        _series: &[Series],
+        _validation: &[bool],
+    ) -> Option<String> {
+        None
+    }
+
     /// What the residual looks like without the effect, in its channel (the reference
     /// its signature is compared with): the baseline's readjustment by default.
     fn null(&self, series: &[Series], train: &[bool], base: Base) -> Vec<Vec<f64>> {
@@ -262,14 +275,17 @@ pub enum Region {
     /// 0.76 N bias was 97 % of the free-air excess and 3 % of the whole). Without enough
     /// free air in the validation recordings it is weighed everywhere.
     FreeAir,
-    /// Above the breathing band, once a breathing law is in the model: for an effect
-    /// whose force follows the probe's motion rates (velocity, acceleration, the force's
-    /// rate), which has little in the breathing band. A breath's law fits a real breath
-    /// only so well (uneven inhale and exhale, breath-to-breath changes), and its misfit
-    /// lives at the breathing rate and its first harmonics: on the independent depth
-    /// damping with breathing, seed 3, 1.17 N was left there, four times what the damping
-    /// adds above it.
-    /// Before any breathing law is modelled it is weighed everywhere.
+    /// Above the breathing band: for an effect whose force follows the probe's motion
+    /// rates (velocity, acceleration, the force's rate), which has little in the
+    /// breathing band. A breath's law fits a real breath only so well (uneven inhale and
+    /// exhale, breath-to-breath changes), and its misfit lives at the breathing rate and
+    /// its first harmonics: on the independent depth damping with breathing, seed 3,
+    /// 1.17 N was left there, four times what the damping adds above it. So does a body
+    /// model's own misfit without any breath (a contact law a few per cent off linear,
+    /// a skin height read 0.1–0.2 mm off): on holdout-4 seed 3 it was 4× the noise
+    /// floor on the no-effect data, and a depth damping and a tissue inertia, weighed
+    /// everywhere, explained 14 % and 0 % of the excess (until session 44 the band
+    /// applied only once a breathing law was modelled).
     AboveBreathing,
 }
 use super::features::Series;

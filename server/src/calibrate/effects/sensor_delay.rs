@@ -17,7 +17,7 @@ impl Effect for SensorDelay {
         NAME
     }
 
-    /// Above the breathing band once a breath is modelled: it follows the force's rate.
+    /// Above the breathing band: it follows the force's rate.
     fn judged_in(&self) -> Region {
         Region::AboveBreathing
     }

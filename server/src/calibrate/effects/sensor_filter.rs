@@ -42,7 +42,7 @@ impl Effect for SensorFilter {
         NAME
     }
 
-    /// Above the breathing band once a breath is modelled: it follows the force's rate.
+    /// Above the breathing band: it follows the force's rate.
     fn judged_in(&self) -> Region {
         Region::AboveBreathing
     }
