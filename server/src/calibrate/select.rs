@@ -1138,7 +1138,7 @@ fn select_effects(
             });
             continue;
         };
-        if let Some(why) = effect.unjudged(&sig, series, validation) {
+        if let Some(why) = effect.unjudged(&sig, series, (train, validation)) {
             rejected.push(decision::Rejected {
                 name,
                 why,

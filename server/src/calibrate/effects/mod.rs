@@ -173,15 +173,15 @@ pub trait Effect: Sync {
     /// specificity test).
     fn signature(&self, series: &[Series], train: &[bool], base: Base) -> Option<Signature>;
 
-    /// Why the validation recordings cannot judge `sig` (`None`: they can; `validation`
-    /// holds them by index). A signature whose own part acts on training recordings
-    /// alone moves validation only through the baseline's readjustment fitted beside it,
-    /// which is no evidence for the effect.
+    /// Why the validation recordings cannot judge `sig` (`None`: they can; `train` and
+    /// `validation` hold the recordings by index). A signature whose own part rests on
+    /// one training recording alone moves validation only through the baseline's
+    /// readjustment fitted beside it, which is no evidence for the effect.
     fn unjudged(
         &self,
         _sig: &Signature,
         _series: &[Series],
-        _validation: &[bool],
+        _roles: (&[bool], &[bool]),
     ) -> Option<String> {
         None
     }
