@@ -152,6 +152,8 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
     let in_free_air = Judging {
         train: &is_train,
         validation: &is_validation,
+        named: &[],
+        breathing_modelled: false,
     }
     .weighing(series, effects::Region::FreeAir)
     .is_some();
@@ -170,9 +172,12 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
             // What an accepted effect contains is found already.
             skip.extend(effects::named(a.name).and_then(|e| e.contains()));
         }
+        let named: Vec<&'static str> = accepted.iter().map(|a| a.name).collect();
         let judging = Judging {
             train: &is_train,
             validation: &is_validation,
+            named: &named,
+            breathing_modelled: calibrated.breathing.is_some(),
         };
         let round = select_effects(
             &current,
@@ -263,7 +268,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                 // The states of the effects named already are read again; the
                 // candidate's own are not, so they never decide its name.
                 let reread: Vec<&str> = names[..names.len() - 1].to_vec();
-                let region = judging.weighing(&current, entry.judged_in());
+                let region = judging.weighing(&current, judging.region_of(entry));
                 let channel = entry.channel();
                 let refit = |start: &Model, fitted: &[&str], free: Free| {
                     refit_in_simulator(
@@ -772,8 +777,19 @@ fn prune(context: &Context<'_>, state: &mut Calibrated) -> Vec<decision::Rejecte
             refit(glance.0, EFFECT_REFIT)
         };
         let without = series_of(dataset, setup, &predictions);
-        let judging = Judging { train, validation };
-        let region = judging.weighing(&without, entry.judged_in());
+        let others: Vec<&'static str> = state
+            .accepted
+            .iter()
+            .map(|a| a.name)
+            .filter(|n| *n != name)
+            .collect();
+        let judging = Judging {
+            train,
+            validation,
+            named: &others,
+            breathing_modelled: model.breathing.is_some(),
+        };
+        let region = judging.weighing(&without, judging.region_of(entry));
         let (before, after) = (error(&predictions, None), error(&state.predictions, None));
         let (gate_before, gate_after) = match &region {
             Some(w) => (
@@ -1116,7 +1132,7 @@ fn select_effects(
             continue;
         }
         let channel = effect.channel();
-        let weighing = judging.weighing(series, effect.judged_in());
+        let weighing = judging.weighing(series, judging.region_of(effect));
         // Weighed in a band, fitted there too (and the reference with it).
         let base = effects::Base {
             fit_above_hz: weighing.as_ref().and_then(Weighing::above_hz),
@@ -1552,6 +1568,8 @@ mod tests {
             &Judging {
                 train: &train,
                 validation: &validation,
+                named: &[],
+                breathing_modelled: false,
             },
             test_base(false),
             0.1,
