@@ -738,10 +738,13 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
                 span.location.phase,
                 span.location.rms_n,
                 100.0 * span.location.share,
-                span.resembles
-                    .as_deref()
-                    .map(|r| format!("; closest catalogue candidate: {r} (not accepted)"))
-                    .unwrap_or_default()
+                match (&span.site_not_trained, &span.resembles) {
+                    (Some(site), _) => format!(
+                        "; no training recording pressed {site}: its tissue was never fitted, so a stiffness of its own (site_heterogeneity) could not be named — record that site in training"
+                    ),
+                    (None, Some(r)) => format!("; closest catalogue candidate: {r} (not accepted)"),
+                    (None, None) => String::new(),
+                }
             );
         }
     } else {

@@ -444,7 +444,7 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                     });
             }
         }
-        let idle = effects::named(trial.effect.name).is_some_and(|e| e.idle(&trial.model));
+        let idle = effects::named(trial.effect.name).is_some_and(|e| e.idle(&trial.model, noise));
         if idle {
             tracing::debug!("{} refitted to no effect", trial.effect.name);
         }
@@ -659,7 +659,12 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
         k_now,
         k_now * calibrated.damping / calibrated.stiffness,
     );
-    let verdict = unexplained::assess(&current, &heldout, floor, closest);
+    let trained_sites: Vec<&str> = split
+        .train
+        .iter()
+        .map(|&i| current[i].site.as_str())
+        .collect();
+    let verdict = unexplained::assess(&current, &heldout, floor, closest, &trained_sites);
     let (calibrated_fz, calibrated_fxy) = current_predictions
         .into_iter()
         .map(|p| (p.fz, p.fxy))

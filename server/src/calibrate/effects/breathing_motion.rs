@@ -86,7 +86,7 @@ impl Effect for BreathingMotion {
     }
 
     /// Refitted below [`MIN_RISE_M`] at the centre.
-    fn idle(&self, model: &Model) -> bool {
+    fn idle(&self, model: &Model, _noise: f64) -> bool {
         model.breathing.is_none_or(|(_, rise)| rise < MIN_RISE_M)
     }
 

@@ -218,10 +218,11 @@ pub trait Effect: Sync {
     }
 
     /// Whether the element in `model` does nothing the data could see (a delay refitted
-    /// to 0 s): a trial whose refit left it so is no evidence for it, whatever the
+    /// to 0 s), or too little to name beside a sensor whose noise floor is `noise`
+    /// \[N\]: a trial whose refit left it so is no evidence for it, whatever the
     /// other parameters' refit gained (holdout-3 seed 16's delay + inertia named a
     /// delay of 0 ms by the 13.5 % the re-balanced damping and filter took).
-    fn idle(&self, _model: &Model) -> bool {
+    fn idle(&self, _model: &Model, _noise: f64) -> bool {
         false
     }
 

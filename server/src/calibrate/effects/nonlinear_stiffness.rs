@@ -49,7 +49,7 @@ impl Effect for NonlinearStiffness {
     }
 
     /// Refitted within [`LINEAR_BAND`] of a linear law over the depths pressed.
-    fn idle(&self, model: &Model) -> bool {
+    fn idle(&self, model: &Model, _noise: f64) -> bool {
         let n = law(model).equivalent_exponent(EQUIVALENT_FROM, deepest(model));
         (n - 1.0).abs() < LINEAR_BAND
     }

@@ -25,6 +25,19 @@ impl Effect for SensorBias {
         signature(series, train, base)
     }
 
+    /// An offset smaller than the sensor's own noise floor σ is not named: that is what
+    /// a tare and a probe's gravity compensation leave (a lab's probe weight is known to
+    /// a few grams, 0.02–0.05 N), and free air is where the bias is judged, so a refit
+    /// there gains its few per cent from the noise-level wander of the free-air level
+    /// rather than from an offset. Holdout-4 seed 4 named a −0.01 N bias against a
+    /// 0.025 N floor in four cases (no effect, friction, inertia, site heterogeneity;
+    /// free air 0.026 → 0.025 N, 5.3 % against the 5 % bar), the generator's
+    /// gravity-compensation residual being ±0.02–0.03 N (session 45; one σ chosen before
+    /// any dataset ran with it). Every generator's biases are 0.4 N and more.
+    fn idle(&self, model: &Model, noise: f64) -> bool {
+        model.bias.abs() < noise
+    }
+
     fn apply(&self, params: &Params, model: &mut Model, _setup: &Setup) {
         model.bias = number(params, "fz_n");
     }
@@ -66,4 +79,20 @@ fn signature(series: &[Series], train: &[bool], base: Base) -> Option<Signature>
         predicted,
         readjust: Readjust::from_tail(&beta),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_offset_below_the_noise_floor_is_idle() {
+        let mut model = Model::baseline(1000.0, 10.0, 0.0);
+        model.bias = -0.010;
+        assert!(SensorBias.idle(&model, 0.025));
+        model.bias = 0.030;
+        assert!(!SensorBias.idle(&model, 0.025));
+        model.bias = -0.6;
+        assert!(!SensorBias.idle(&model, 0.15));
+    }
 }

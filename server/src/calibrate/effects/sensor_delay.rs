@@ -31,7 +31,7 @@ impl Effect for SensorDelay {
     }
 
     /// Under [`MIN_SENSOR_LAG_S`](super::MIN_SENSOR_LAG_S).
-    fn idle(&self, model: &Model) -> bool {
+    fn idle(&self, model: &Model, _noise: f64) -> bool {
         model.delay < super::MIN_SENSOR_LAG_S
     }
 

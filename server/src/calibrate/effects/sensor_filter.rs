@@ -87,7 +87,7 @@ impl Effect for SensorFilter {
     /// At the signature grid's top the filter attenuates nothing the motion excites;
     /// below it, one that lags less than [`MIN_SENSOR_LAG_S`](super::MIN_SENSOR_LAG_S)
     /// is a robot's timing, not a sensor's filter.
-    fn idle(&self, model: &Model) -> bool {
+    fn idle(&self, model: &Model, _noise: f64) -> bool {
         model.filter_cutoff_hz >= CUTOFF_HZ[1]
             || low_pass_lag_s(model.filter_cutoff_hz, model.filter_order) < super::MIN_SENSOR_LAG_S
     }

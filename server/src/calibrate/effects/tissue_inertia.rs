@@ -34,7 +34,7 @@ impl Effect for TissueInertia {
     /// not tissue: a trial that left it there gained by the others' refit (holdout-4
     /// seed 1's relaxation named "≈ 0.00 kg" by the 13 % its refit of the damping took
     /// above the breathing band, session 44).
-    fn idle(&self, model: &Model) -> bool {
+    fn idle(&self, model: &Model, _noise: f64) -> bool {
         model.moving_mass < MIN_MASS_KG
     }
 
