@@ -479,6 +479,29 @@ fn markdown(o: &Outcome, fig: Figures, site_stiffness: &[(String, f64)]) -> Stri
             "**Something the catalogue lacks remains.** After calibration the held-out residual is {:.1}× its floor and structured (autocorrelation {:.2} at 50 ms); see *Unexplained* below. The simulator is calibrated only as far as the catalogue reaches.\n",
             o.verdict.ratio_to_noise, o.verdict.autocorrelation_50ms
         );
+        let mut untrained: Vec<&str> = o
+            .verdict
+            .spans
+            .iter()
+            .filter_map(|span| span.site_not_trained.as_deref())
+            .collect();
+        untrained.sort_unstable();
+        untrained.dedup();
+        if !untrained.is_empty() {
+            let share: f64 = o
+                .verdict
+                .spans
+                .iter()
+                .filter(|span| span.site_not_trained.is_some())
+                .map(|span| span.location.share)
+                .sum();
+            let _ = writeln!(
+                s,
+                "{:.0} % of that residual lies at {}, pressed by no training recording: the tissue there was never fitted, so a stiffness of its own (`site_heterogeneity`) could not be named. Record that site in training to find out.\n",
+                100.0 * share,
+                untrained.join(", ")
+            );
+        }
     }
     let b = &o.baseline;
     let _ = writeln!(
