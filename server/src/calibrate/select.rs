@@ -444,7 +444,11 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                     });
             }
         }
-        let idle = effects::named(trial.effect.name).is_some_and(|e| e.idle(&trial.model, noise));
+        let idle = effects::named(trial.effect.name).is_some_and(|e| {
+            e.idle(&trial.model, noise)
+                || (e.idle_within_interval()
+                    && idle_at_an_interval_end(e, &trial.model, &trial.diagnostics, noise))
+        });
         if idle {
             tracing::debug!("{} refitted to no effect", trial.effect.name);
         }
@@ -678,6 +682,31 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
         calibrated_fz,
         calibrated_fxy,
     }
+}
+
+/// Whether `effect`'s element in `model` is idle with one of its parameters moved to
+/// either end of its 95 % interval in `diagnostics` (an end that is not finite, a
+/// parameter stopped at its bound, is skipped).
+fn idle_at_an_interval_end(
+    effect: &dyn effects::Effect,
+    model: &Model,
+    diagnostics: &FitDiagnostics,
+    noise: f64,
+) -> bool {
+    effect.parameters(model).iter().any(|parameter| {
+        let name = format!("{}.{}", effect.name(), parameter.key);
+        diagnostics
+            .estimates
+            .iter()
+            .filter(|e| e.name == name)
+            .flat_map(|e| e.interval)
+            .filter(|end| end.is_finite())
+            .any(|end| {
+                let mut at_end = model.clone();
+                effect.set(&mut at_end, &parameter.key, end);
+                effect.idle(&at_end, noise)
+            })
+    })
 }
 
 /// Where selection returns to if a near miss held on trust is joined by nothing.
@@ -1431,6 +1460,51 @@ mod tests {
     use super::*;
     use rand::{RngExt, SeedableRng};
     use rand_pcg::Pcg64Mcg;
+
+    /// A stiffening law fitted to 1.19 [1.11, 1.28] (holdout-4 seed 5's no-effect
+    /// body) cannot be told from the band a linear body's contact reaches, and is idle;
+    /// 1.63 [1.38, 1.88] (its stiffening case) is not; a law whose interval is not
+    /// defined (stopped at a bound) is judged at its value.
+    #[test]
+    fn a_stiffening_whose_interval_reaches_the_linear_band_is_idle() {
+        let effect = effects::named("nonlinear_stiffness").expect("in the catalogue");
+        assert!(effect.idle_within_interval());
+        let fitted = |value: f64, interval: [f64; 2]| {
+            let mut model = Model::baseline(1000.0, 10.0, 0.0);
+            model.exponent = value;
+            model.deepest_press_m = 0.012;
+            let diagnostics = FitDiagnostics {
+                estimates: vec![super::super::model::Estimate {
+                    name: "nonlinear_stiffness.exponent".into(),
+                    value,
+                    interval,
+                    at_bound: false,
+                    held: false,
+                }],
+                correlated: Vec::new(),
+                convergence: super::super::fit::Convergence::Converged,
+                evaluations: 1,
+            };
+            (model, diagnostics)
+        };
+        let (model, diagnostics) = fitted(1.19, [1.11, 1.28]);
+        assert!(!effect.idle(&model, 0.025));
+        assert!(idle_at_an_interval_end(effect, &model, &diagnostics, 0.025));
+        let (model, diagnostics) = fitted(1.63, [1.38, 1.88]);
+        assert!(!idle_at_an_interval_end(
+            effect,
+            &model,
+            &diagnostics,
+            0.025
+        ));
+        let (model, diagnostics) = fitted(1.63, [f64::NAN, f64::NAN]);
+        assert!(!idle_at_an_interval_end(
+            effect,
+            &model,
+            &diagnostics,
+            0.025
+        ));
+    }
 
     /// Twelve 20 s recordings at 100 Hz with 0.1 N of noise: the probe's depth and
     /// depth rate `motion(t)` (free air below 0), the baseline a 2000 N/m spring, the

@@ -226,6 +226,14 @@ pub trait Effect: Sync {
         false
     }
 
+    /// Whether the element counts as idle where it is idle at either end of one of its
+    /// parameters' 95 % intervals (the data cannot tell it from its no-effect form), not
+    /// only at the refitted value. For an element whose no-effect form is a band a
+    /// body's ordinary contact already reaches (a stiffening law near linear).
+    fn idle_within_interval(&self) -> bool {
+        false
+    }
+
     /// Put the simulator element into `model`, from the signature's parameters.
     fn apply(&self, params: &Params, model: &mut Model, setup: &Setup);
 
