@@ -21,7 +21,7 @@ use super::on_trust::{self, Outcome, Trust};
 use super::replay::{self, Model, Setup, replay_all};
 use super::split::Split;
 use super::weighing::{self, Judging, Weighing};
-use super::{baseline, decision, series_of, simpler, unexplained};
+use super::{baseline, decision, onset_geometry, series_of, simpler, unexplained};
 
 /// Validation RMSE reduction the first accepted effect needs (relative).
 pub const FIRST_GAIN: f64 = 0.05;
@@ -254,8 +254,16 @@ pub fn select(inputs: &Inputs<'_>) -> Selection {
                 let entry = effects::named(effect.name).expect("selected from the catalogue");
                 let mut model = calibrated.clone();
                 apply_effects(&mut model, std::slice::from_ref(*effect), setup);
-                // The refit starts where the signature put the baseline.
+                // The refit starts where the signature put the baseline, on the skins
+                // the data choose for a lag it brings.
                 readjust(&mut model, effect.readjust, k_now);
+                let model = onset_geometry::lag_or_as_read(
+                    setup,
+                    dataset,
+                    &split.validation,
+                    model,
+                    &calibrated,
+                );
                 // An effect this one contains is replaced by it (its parameter is this
                 // one's).
                 let replaced = entry.contains();
