@@ -1194,15 +1194,17 @@ mod tests {
         assert_eq!(kept.breathing_phase, vec![0.0]);
     }
 
-    /// A breath that rises over 35 % of the cycle, falls over 50 % and pauses 15 %,
-    /// held at two sites: the signature keeps that waveform (not the sinusoid) and the
-    /// rise, and its prediction leaves little more than the noise.
-    #[test]
-    fn the_signature_reads_the_breaths_waveform() {
-        let (k, rise, freq) = (2000.0, 0.003, 0.28);
-        let mut rng = Pcg64Mcg::seed_from_u64(11);
+    /// Two 40 s holds at the centre breathing a `rise` at `freq` (inhale 35 %, pause
+    /// 15 %) on a contact stiffness `k`, ±0.05 N of noise; and the base they are
+    /// read with.
+    fn two_breathing_holds(
+        k: f64,
+        rise: f64,
+        freq: f64,
+        rng: &mut Pcg64Mcg,
+    ) -> (Vec<Series>, Base) {
         let t: Vec<f64> = (0..4000).map(|i| i as f64 * 0.01).collect();
-        let series: Vec<Series> = [0.4, 2.9]
+        let series = [0.4, 2.9]
             .iter()
             .enumerate()
             .map(|(index, &phase0)| {
@@ -1228,6 +1230,17 @@ mod tests {
             fit_free_air: false,
             moving_mass: false,
         };
+        (series, base)
+    }
+
+    /// A breath that rises over 35 % of the cycle, falls over 50 % and pauses 15 %,
+    /// held at two sites: the signature keeps that waveform (not the sinusoid) and the
+    /// rise, and its prediction leaves little more than the noise.
+    #[test]
+    fn the_signature_reads_the_breaths_waveform() {
+        let (k, rise, freq) = (2000.0, 0.003, 0.28);
+        let mut rng = Pcg64Mcg::seed_from_u64(11);
+        let (series, base) = two_breathing_holds(k, rise, freq, &mut rng);
         let sig = signature(&series, &[true, true], base).expect("a breath");
         let (inhale, pause) = (
             number(&sig.params, "inhale_share"),
@@ -1253,7 +1266,7 @@ mod tests {
         assert!(sse < 5.0 * noise, "SSE {sse:.2}, noise alone {noise:.2}");
     }
 
-    /// Beside the two holds of [`the_signature_reads_the_breaths_waveform`], a third
+    /// Beside [`two_breathing_holds`], a third
     /// recording with three 1.5 s holds whose force creeps 20 N/s in each (nothing of
     /// the breath: tissue settling under the probe). Each hold's own offset takes most
     /// of a breath 1.5 s long, so what is left reads a large amplitude that its
@@ -1263,24 +1276,7 @@ mod tests {
     fn a_recording_that_tells_little_of_the_breath_does_not_set_its_rise() {
         let (k, rise, freq) = (2000.0, 0.003, 0.28);
         let mut rng = Pcg64Mcg::seed_from_u64(11);
-        let t: Vec<f64> = (0..4000).map(|i| i as f64 * 0.01).collect();
-        let mut series: Vec<Series> = [0.4, 2.9]
-            .iter()
-            .enumerate()
-            .map(|(index, &phase0)| {
-                let residual: Vec<f64> = t
-                    .iter()
-                    .map(|&t| {
-                        let phase = phase0 + std::f64::consts::TAU * freq * t;
-                        k * rise * waveform(phase, 0.35, 0.15) + rng.random_range(-0.05..0.05)
-                    })
-                    .collect();
-                Series {
-                    index,
-                    ..held(t.clone(), residual)
-                }
-            })
-            .collect();
+        let (mut series, base) = two_breathing_holds(k, rise, freq, &mut rng);
         let short: Vec<f64> = (0..1000).map(|i| i as f64 * 0.01).collect();
         let holds = [1.0, 4.0, 7.0];
         let in_hold = |t: f64| holds.iter().find(|&&h| (h..h + 1.5).contains(&t)).copied();
@@ -1297,15 +1293,6 @@ mod tests {
             .map(|&t| if in_hold(t).is_some() { 0.0 } else { 0.01 })
             .collect();
         series.push(creeping);
-        let base = Base {
-            k,
-            c: 10.0,
-            center_xy: [0.0; 2],
-            half_size: [0.15, 0.1],
-            fit_above_hz: None,
-            fit_free_air: false,
-            moving_mass: false,
-        };
         let sig = signature(&series, &[true, true, true], base).expect("a breath");
         let fitted_rise = RISE_PER_AMPLITUDE * number(&sig.params, "amplitude_m");
         assert!(
